@@ -1,0 +1,48 @@
+"""The ``automodal`` command line: a thin click layer over :mod:`automodal.pipeline` and the I/O.
+
+Each command lives in its own module and is imported only when it runs, so that
+``automodal --help`` stays fast.
+"""
+
+from __future__ import annotations
+
+import importlib
+
+import click
+
+from automodal import __version__
+
+# command name -> (module, attribute, one-line help)
+_COMMANDS = {
+    "identify": ("automodal.cli.identify_cmd", "identify", "Identify the modes in an FRF file."),
+    "simulate": ("automodal.cli.simulate_cmd", "simulate", "Write a synthetic test of a known system."),
+}
+
+
+class _LazyGroup(click.Group):
+    """A click group that imports a command's module only when the command is used."""
+
+    def list_commands(self, ctx: click.Context) -> list[str]:
+        return sorted(_COMMANDS)
+
+    def get_command(self, ctx: click.Context, cmd_name: str) -> click.Command | None:
+        if cmd_name not in _COMMANDS:
+            return None
+        module, attr, _ = _COMMANDS[cmd_name]
+        return getattr(importlib.import_module(module), attr)
+
+    def format_commands(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
+        rows = [(name, _COMMANDS[name][2]) for name in self.list_commands(ctx)]
+        with formatter.section("Commands"):
+            formatter.write_dl(rows)
+
+
+@click.group(cls=_LazyGroup, context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(__version__, prog_name="automodal")
+def main() -> None:
+    """automodal: find the modes of a structure from vibration test data, with no human in the loop.
+
+    \b
+    Example:
+      automodal identify sample_data/chain6.h5 -o report.json
+    """

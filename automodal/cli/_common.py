@@ -1,0 +1,49 @@
+"""Helpers shared by the CLI commands: turning errors into exit statuses."""
+
+from __future__ import annotations
+
+import sys
+import traceback
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+
+import click
+
+from automodal.errors import InputError
+
+EXIT_OK = 0
+EXIT_INTERNAL = 1
+EXIT_INPUT = 2
+EXIT_MONITORING = 3
+
+
+@contextmanager
+def exit_on_error(debug: bool = False) -> Iterator[None]:
+    """Turn exceptions into one line on stderr and the exit statuses of ``spec/cli.md``.
+
+    :class:`InputError` exits 2; any other exception exits 1. With ``debug`` the traceback
+    is printed too.
+    """
+    try:
+        yield
+    except InputError as exc:
+        if debug:
+            traceback.print_exc()
+        click.echo(f"automodal: error: {exc}", err=True)
+        sys.exit(EXIT_INPUT)
+    except (click.exceptions.Exit, click.exceptions.Abort, click.ClickException, SystemExit):
+        raise
+    except KeyboardInterrupt:
+        click.echo("automodal: interrupted", err=True)
+        sys.exit(130)
+    except Exception as exc:  # noqa: BLE001 - the CLI boundary
+        if debug:
+            traceback.print_exc()
+        msg = " ".join(str(exc).split()) or type(exc).__name__
+        click.echo(f"automodal: internal error: {type(exc).__name__}: {msg}", err=True)
+        sys.exit(EXIT_INTERNAL)
+
+
+def debug_option(func: Callable) -> Callable:
+    """The ``--debug`` flag: show tracebacks."""
+    return click.option("--debug", is_flag=True, help="Show a traceback on errors.")(func)
