@@ -1,0 +1,176 @@
+"""``automodal simulate``: write a synthetic test of a known system."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+import numpy as np
+
+from automodal.cli._common import debug_option, exit_on_error
+from automodal.errors import InputError
+from automodal.frfdata import QUANTITIES
+
+
+def parse_dofs(text: str, n_dof: int, option: str) -> list[int]:
+    """1-based DOF list ``"1,3,5-8"`` or ``"all"`` -> 0-based indices, in the given order.
+
+    Raises
+    ------
+    click.BadParameter
+        A number out of ``1..n_dof``, a repeat, or text that is not a list of numbers.
+    """
+    text = text.strip().lower()
+    if text == "all":
+        return list(range(n_dof))
+    dofs: list[int] = []
+    try:
+        for part in filter(None, (p.strip() for p in text.split(","))):
+            lo, _, hi = part.partition("-")
+            first, last = int(lo), int(hi or lo)
+            if first > last:
+                raise ValueError(part)
+            dofs.extend(range(first, last + 1))
+    except ValueError:
+        raise click.BadParameter(f"{text!r} is not a list of DOF numbers like 1,3,5-8 or 'all'",
+                                 param_hint=option) from None
+    if not dofs:
+        raise click.BadParameter("no DOF given", param_hint=option)
+    bad = sorted({d for d in dofs if not 1 <= d <= n_dof})
+    if bad:
+        raise click.BadParameter(f"DOF {bad[0]} is outside 1..{n_dof}", param_hint=option)
+    if len(set(dofs)) != len(dofs):
+        raise click.BadParameter("a DOF is listed twice", param_hint=option)
+    return [d - 1 for d in dofs]
+
+
+def modes_path(output: Path) -> Path:
+    """``<dir>/<stem>.modes.json`` beside the FRF file."""
+    return output.with_name(output.stem + ".modes.json")
+
+
+def _count(n: int, noun: str) -> str:
+    return f"{n} {noun}" + ("" if n == 1 else "s")
+
+
+def _range(values: np.ndarray, fmt: str) -> str:
+    if values.size == 0:
+        return "-"
+    lo, hi = format(values.min(), fmt), format(values.max(), fmt)
+    return lo if lo == hi else f"{lo}-{hi}"
+
+
+@click.command(
+    "simulate",
+    context_settings={"help_option_names": ["-h", "--help"]},
+    epilog="""\b
+Examples:
+  automodal simulate chain6.h5 --dof 6 --inputs 6 --seed 1
+  automodal simulate plate.h5 --system grid --grid 3 4 --outputs 1,3,5-8 \\
+      --inputs 1,12 --quantity acceleration --damping nonproportional
+  automodal simulate noise.h5 --pure-noise --seed 7""",
+)
+@click.argument("output", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--system", "system_kind", type=click.Choice(["chain", "grid"]), default="chain",
+              show_default=True,
+              help="Spring-mass chain grounded at DOF 1, or 2-D grid of masses.")
+@click.option("--dof", type=click.IntRange(min=1), default=6, show_default=True,
+              help="Chain: number of masses.")
+@click.option("--grid", "grid_size", type=click.IntRange(min=1), nargs=2, default=(3, 4),
+              show_default=True, metavar="NX NY", help="Grid: masses along x and y.")
+@click.option("--symmetric", is_flag=True,
+              help="Grid: equal x and y springs (repeated or close modes).")
+@click.option("--outputs", default="all", show_default=True,
+              help="Sensor DOFs, 1-based: '1,3,5-8' or 'all'.")
+@click.option("--inputs", default=None, help="Force DOFs, 1-based.  [default: the last DOF]")
+@click.option("--quantity", type=click.Choice(QUANTITIES), default="displacement",
+              show_default=True, help="Response measured: receptance, mobility or accelerance.")
+@click.option("--damping", type=click.Choice(["rayleigh", "nonproportional"]), default="rayleigh",
+              show_default=True,
+              help="Rayleigh (real modes) or Rayleigh plus discrete dashpots (complex modes).")
+@click.option("--zeta", type=click.FloatRange(min=0, max=0.5), default=0.01, show_default=True,
+              help="Damping level: Rayleigh ratio at the lowest and highest mode "
+              "(nonproportional: half that, plus dashpots adding up to it).")
+@click.option("--noise", type=click.FloatRange(min=0), default=0.01, show_default=True,
+              help="Relative noise level (0.01 = 1 %).")
+@click.option("--noise-kind", type=click.Choice(["proportional", "additive"]),
+              default="proportional", show_default=True,
+              help="Noise std relative to |H| at each line, or to the RMS of each FRF.")
+@click.option("--lines", type=click.IntRange(min=2), default=1000, show_default=True,
+              help="Number of frequency lines.")
+@click.option("--fmin", type=click.FloatRange(min=0), default=None,
+              help="Lowest line in Hz.  [default: fmax / lines, no 0 Hz line]")
+@click.option("--fmax", type=click.FloatRange(min=0, min_open=True), default=None,
+              help="Highest line in Hz.  [default: 1.25 x the highest natural frequency]")
+@click.option("--pure-noise", is_flag=True,
+              help="Write complex Gaussian noise with no structure (a test with no mode).")
+@click.option("--seed", type=click.IntRange(min=0, max=2**63 - 1), default=None,
+              help="Random seed; the one used is stored in both files.  [default: random]")
+@click.option("--quiet", "-q", is_flag=True, help="Print nothing on success.")
+@debug_option
+def simulate(output: Path, system_kind: str, dof: int, grid_size: tuple[int, int],
+             symmetric: bool, outputs: str, inputs: str | None, quantity: str, damping: str,
+             zeta: float, noise: float, noise_kind: str, lines: int, fmin: float | None,
+             fmax: float | None, pure_noise: bool, seed: int | None, quiet: bool,
+             debug: bool) -> None:
+    """Write a synthetic test of a known system to OUTPUT.h5, with its exact modes.
+
+    The FRF file (shared/spec/frf-file.md) gets the chosen responses per unit force with
+    complex Gaussian noise; <OUTPUT stem>.modes.json beside it gets the exact modes at the
+    sensors (frequency, damping ratio, shapes, residues) and every setting used.
+    """
+    # imported here so that `automodal simulate --help` does not load scipy and h5py
+    from automodal.core import simulate as sim
+    from automodal.io.frf_file import write_frf
+    from automodal.io.modes_file import write_modes_json
+
+    with exit_on_error(debug):
+        if not output.parent.is_dir():
+            raise InputError("the folder to write into does not exist", output)
+        if system_kind == "chain":
+            system = sim.chain(dof)
+        else:
+            system = sim.grid(*grid_size, symmetric=symmetric)
+        n = system.n_dof
+        out = parse_dofs(outputs, n, "--outputs")
+        inp = parse_dofs(str(n) if inputs is None else inputs, n, "--inputs")
+        system = sim.damp(system, damping, zeta)
+        f_nat = sim.natural_frequencies_hz(system)
+        f_top = 1.25 * f_nat.max() if fmax is None else fmax
+        if fmin is not None and fmin >= f_top:
+            raise click.BadParameter(f"{fmin} Hz is not below fmax = {f_top:.6g} Hz",
+                                     param_hint="--fmin")
+        freq = sim.frequency_lines(f_top, lines, fmin)
+        data, modes = sim.simulate_test(system, out, inp, freq, quantity, noise, seed,
+                                        noise_kind, pure_noise)
+        seed_used = int(data.attributes["seed"])
+
+        mpath = modes_path(output)
+        settings = {
+            "command": "automodal simulate",
+            "frf_file": output.name,
+            "system": system.meta,
+            "outputs": [i + 1 for i in out],
+            "inputs": [j + 1 for j in inp],
+            "quantity": quantity,
+            "noise": noise,
+            "noise_kind": noise_kind,
+            "pure_noise": pure_noise,
+            "lines": lines,
+            "band_hz": [float(freq[0]), float(freq[-1])],
+            "seed": seed_used,
+        }
+        write_frf(output, data)
+        write_modes_json(mpath, modes, settings)
+
+        if not quiet:
+            in_band = (modes.frequency_hz >= freq[0]) & (modes.frequency_hz <= freq[-1])
+            what = "pure noise" if pure_noise else f"noise {100 * noise:g} % {noise_kind}"
+            click.echo(
+                f"{output}: {system.meta['name']}, {_count(len(out), 'output')} x "
+                f"{_count(len(inp), 'input')}, "
+                f"{quantity}, {lines} lines {freq[0]:.4g}-{freq[-1]:.4g} Hz, {what}, "
+                f"seed {seed_used}; {mpath.name}: {modes.n_modes} modes "
+                f"({in_band.sum()} in band, {_range(modes.frequency_hz, '.4g')} Hz, "
+                f"zeta {_range(100 * modes.damping_ratio, '.2f')} %)"
+            )

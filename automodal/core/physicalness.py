@@ -1,0 +1,138 @@
+"""Physicalness of clusters: log-scale features and anchored fuzzy c-means.
+
+Features of a cluster: the three of ``method.md`` section 5,
+
+1. occurrence ratio ``members / (B dim)``, in [0, 1];
+2. ``log10(1 - mean rho)``, decorrelation of the members from the cluster subspace;
+3. ``log10(median |l - l_ref| / |l_ref|)``, relative scatter of the members' poles;
+
+and a fourth,
+
+4. ``log10(modal contribution)``: how much of the reference model's FRF at the mode's
+   own resonance the mode's term makes (about 1 for a physical mode).
+
+Why a fourth: with a frequency-line bootstrap every replicate re-fits the same noise
+realisation, so over-fitting modes recur (occurrence up to 0.97) with correlations and
+scatters that overlap those of physical modes at 5 % noise. Measured over 18 simulated
+tests (6 cases x 3 seeds, 100 replicates), clusters called physical that are not true
+modes fell from 5 to 1 and missed true modes from 4 to 0 when the fourth feature was
+added; the contribution's median was 0.99 for true modes and 0.005 for noise clusters.
+
+Plain two-class fuzzy c-means always splits its data in two, so on a file without
+structure half the clusters would come out "physical". Here the classes are **anchored**:
+the features are standardised with fixed scales (not per-file statistics), and the data
+are clustered together with copies of two fixed prototypes, one for a physical mode and
+one for a noise mode, that carry as much weight as the data. The centres can move
+towards the data's own groups, but the physical centre cannot wander into a cloud of
+noise clusters, so a file of pure noise gives no physical cluster. The class whose centre
+is nearer the physical prototype is the physical one, and physicalness is the membership
+of that class.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+FEATURE_NAMES = (
+    "occurrence",
+    "log10_decorrelation",
+    "log10_pole_scatter",
+    "log10_modal_contribution",
+)
+
+PHYSICAL_PROTOTYPE = np.array([1.0, -5.0, -4.5, 0.0])
+"""Features of a clearly physical cluster: found by every replicate, members correlated to
+within 1e-5 of the cluster subspace, relative pole scatter 3e-5, the whole FRF at its
+resonance."""
+
+NOISE_PROTOTYPE = np.array([0.4, -1.0, -1.5, -2.3])
+"""Features of a typical noise cluster: found by 40 % of the replicates, 10 % decorrelation,
+3 % relative pole scatter, 0.5 % of the FRF at its frequency."""
+
+FEATURE_SCALE = np.array([0.3, 1.5, 1.0, 0.7])
+"""Fixed standardisation of the features (about the spread of each class)."""
+
+CONTRIBUTION_RANGE = (-4.0, 0.5)
+
+FLOOR = 1e-12
+LOG_RANGE = (-8.0, 0.0)
+"""Both log features are clipped to this range: below it differences mean nothing."""
+
+
+def cluster_features(
+    n_members: int,
+    n_bootstrap: int,
+    dim: int,
+    r2: np.ndarray,
+    rel_scatter: np.ndarray,
+    contribution: float,
+) -> np.ndarray:
+    """The four features of one cluster.
+
+    Parameters
+    ----------
+    n_members : int
+        Bootstrap modes in the cluster.
+    n_bootstrap : int
+        Number of bootstrap replicates.
+    dim : int
+        Dimension of the cluster subspace (2 for a pair of near-repeated modes).
+    r2 : ndarray
+        Members' correlation with the cluster subspace.
+    rel_scatter : ndarray
+        Members' relative pole deviations from the cluster's centre.
+    contribution : float
+        Modal contribution of the cluster's reference mode(s).
+
+    Returns
+    -------
+    ndarray, shape (4,)
+    """
+    occurrence = min(1.0, n_members / float(max(1, n_bootstrap * dim)))
+    decor = np.log10(max(1.0 - float(np.mean(r2)), 0.0) + FLOOR) if r2.size else 0.0
+    scatter = np.log10(float(np.median(rel_scatter)) + FLOOR) if rel_scatter.size else 0.0
+    contrib = float(np.clip(np.log10(max(contribution, 0.0) + FLOOR), *CONTRIBUTION_RANGE))
+    return np.array([occurrence, *np.clip([decor, scatter], *LOG_RANGE), contrib])
+
+
+def _memberships(X: np.ndarray, centres: np.ndarray, m: float) -> np.ndarray:
+    d = np.linalg.norm(X[:, None, :] - centres[None, :, :], axis=2)  # (n, c)
+    d = np.maximum(d, 1e-12)
+    inv = d ** (-2.0 / (m - 1.0))
+    return (inv / inv.sum(axis=1, keepdims=True)).T  # (c, n)
+
+
+def physicalness(features: np.ndarray, m: float = 2.0, anchor_weight: float = 1.0) -> np.ndarray:
+    """Anchored fuzzy c-means membership of the physical class for each cluster.
+
+    Parameters
+    ----------
+    features : ndarray, shape (n_clusters, 4)
+        :func:`cluster_features` of each cluster.
+    m : float
+        Fuzzifier.
+    anchor_weight : float
+        Copies of each prototype per cluster (1: the prototypes weigh as much as the data).
+
+    Returns
+    -------
+    ndarray, shape (n_clusters,)
+        Physicalness in [0, 1].
+    """
+    import skfuzzy
+
+    features = np.atleast_2d(np.asarray(features, dtype=float))
+    n = features.shape[0]
+    if n == 0:
+        return np.zeros(0)
+    X = features / FEATURE_SCALE
+    protos = np.vstack([PHYSICAL_PROTOTYPE, NOISE_PROTOTYPE]) / FEATURE_SCALE
+    copies = max(1, int(round(anchor_weight * n)))
+    data = np.vstack([X, np.repeat(protos, copies, axis=0)])
+    u0 = _memberships(data, protos, m)
+    centres, *_ = skfuzzy.cmeans(data.T, 2, m, error=1e-9, maxiter=300, init=u0)
+    phys = int(np.argmin(np.linalg.norm(centres - protos[0], axis=1)))
+    if phys == int(np.argmin(np.linalg.norm(centres - protos[1], axis=1))):
+        centres = protos  # both centres collapsed onto one side: fall back to the prototypes
+        phys = 0
+    return _memberships(X, centres, m)[phys]

@@ -1,0 +1,646 @@
+"""Frequency-domain subspace identification (McKelvey, Akcay and Ljung 1996, "Algorithm 2").
+
+The FRF ``H_k`` (``ny x nu``) at angular frequency ``w_k`` is placed on the unit circle at
+``z_k`` by the bilinear map (:mod:`automodal.core.bilinear`). With
+``W_q(z) = [1, z, ..., z^(q-1)]^T`` the data matrices are::
+
+    U = [W_q(z_1) kron I, ..., W_q(z_N) kron I]      (q nu x N nu)
+    Y = [W_q(z_1) kron H_1, ..., W_q(z_N) kron H_N]  (q ny x N nu)
+
+and ``Y = O X + Gamma U`` with ``O`` the extended observability matrix. Removing the row
+space of ``U`` (real stacking of real and imaginary parts) leaves the column space of ``O``.
+
+Two ways to get it are implemented:
+
+* the reference **QR path**: LQ factorisation of ``[[Re U, Im U], [Re Y, Im Y]]`` and the
+  SVD of its lower-right block ``L22``;
+* the **Gram path**: because ``|z_k| = 1``, every block of ``Z Z^H`` (``Z = [U; Y]``)
+  depends only on the power difference ``d = i - j``, so the real Gram matrix is built
+  from ``2q - 1`` weighted sums over lines, and ``L22 L22^T`` is its Schur complement.
+  Per-line weights ``c_k`` (bootstrap counts) enter linearly, so all replicates' sums are
+  a single matrix product.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg as sla
+
+from automodal.core.bilinear import d2c
+
+# ---------------------------------------------------------------------------------------
+# Sizes
+# ---------------------------------------------------------------------------------------
+
+
+def block_rows(n: int, ny: int) -> int:
+    """Default number of block rows ``q`` for model order ``n`` and ``ny`` outputs.
+
+    ``(q - 1) ny >= n`` is what the rank argument needs; ``q = ceil(1.2 n / ny) + 1`` leaves
+    a margin, and a single output uses ``q = n + 1``.
+    """
+    if ny <= 1:
+        return int(n) + 1
+    return int(math.ceil(1.2 * n / ny)) + 1
+
+
+def min_lines(n: int, ny: int, nu: int, q: int | None = None) -> int:
+    """Fewest frequency lines that identify order ``n`` with ``q`` block rows.
+
+    The real-stacked data matrix has ``2 N nu`` columns and ``q (nu + ny)`` rows; the
+    projection needs at least as many columns as rows.
+    """
+    q = block_rows(n, ny) if q is None else q
+    return int(math.ceil(q * (nu + ny) / (2.0 * nu)))
+
+
+# ---------------------------------------------------------------------------------------
+# The polynomial basis of the block rows
+# ---------------------------------------------------------------------------------------
+
+MONOMIAL_MAX_COND = 1e4
+"""Largest condition number of the monomial Gram matrix ``Re sum_k z_k^(i-j)`` for which the
+monomial basis is used; above it the rows are built on an orthonormal polynomial basis.
+Measured (noise-free SISO chains): pole errors grew like ``1e-17 cond^2`` in the Gram path
+(cond 1.7e4 -> 1.6e-9, 7.5e5 -> 5e-6, 3.4e7 -> 7e-4)."""
+
+
+@dataclass
+class RowBasis:
+    """Real-coefficient polynomials ``p_0 .. p_(q-1)`` that replace ``W_q(z)`` in the data.
+
+    Any such basis spans the same row space for ``U``, and the observability matrix
+    becomes ``[C p_0(A); ...; C p_(q-1)(A)]``. The recurrence
+    ``z p_j(z) = sum_i shift[i, j] p_i(z)`` gives the shift-invariance equations.
+
+    Attributes
+    ----------
+    values : ndarray, shape (q, N)
+        ``p_i(z_k)`` at the data points.
+    shift : ndarray, shape (q, q - 1)
+        Recurrence coefficients (upper Hessenberg).
+    p0 : float
+        The constant value of ``p_0``.
+    monomial : bool
+        True for ``p_i = z^i`` (then the Gram matrix is block Toeplitz).
+    """
+
+    values: np.ndarray
+    shift: np.ndarray
+    p0: float
+    monomial: bool
+
+    @property
+    def q(self) -> int:
+        """Number of block rows."""
+        return int(self.values.shape[0])
+
+
+def monomial_basis(z: np.ndarray, q: int) -> RowBasis:
+    """The textbook basis ``p_i = z^i``."""
+    shift = np.zeros((q, q - 1))
+    shift[np.arange(1, q), np.arange(q - 1)] = 1.0
+    return RowBasis(values=z[None, :] ** np.arange(q)[:, None], shift=shift, p0=1.0, monomial=True)
+
+
+def orthonormal_basis(z: np.ndarray, q: int) -> RowBasis:
+    """Polynomials orthonormal on the data points in the real-stacked inner product.
+
+    Arnoldi (Stieltjes) process with the inner product ``<a, b> = Re sum_k a_k conj(b_k)``
+    and re-orthogonalisation; real coefficients keep the real stacking valid.
+    """
+    N = z.size
+    P = np.empty((q, N), dtype=complex)
+    shift = np.zeros((q, q - 1))
+    p0 = 1.0 / np.sqrt(N)
+    P[0] = p0
+    for j in range(q - 1):
+        w = z * P[j]
+        for _ in range(2):
+            h = (P[: j + 1].conj() @ w).real
+            w = w - h @ P[: j + 1]
+            shift[: j + 1, j] += h
+        nrm = np.linalg.norm(w)
+        shift[j + 1, j] = nrm
+        P[j + 1] = w / nrm
+    return RowBasis(values=P, shift=shift, p0=p0, monomial=False)
+
+
+def _monomial_gram_cond(z: np.ndarray, q: int) -> float:
+    d = np.arange(q)
+    tu = np.cos(np.angle(z)[None, None, :] * (d[:, None, None] - d[None, :, None])).sum(-1)
+    return float(np.linalg.cond(tu))
+
+
+def row_basis(z: np.ndarray, q: int, kind: str = "auto") -> RowBasis:
+    """Choose the row basis: ``"monomial"``, ``"orthonormal"``, or ``"auto"`` (monomial while
+    its Gram matrix is well conditioned, see :data:`MONOMIAL_MAX_COND`)."""
+    if kind == "auto":
+        kind = "monomial" if _monomial_gram_cond(z, q) <= MONOMIAL_MAX_COND else "orthonormal"
+    if kind == "monomial":
+        return monomial_basis(z, q)
+    if kind == "orthonormal":
+        return orthonormal_basis(z, q)
+    raise ValueError(f"unknown basis {kind!r}")
+
+
+# ---------------------------------------------------------------------------------------
+# The reference QR path
+# ---------------------------------------------------------------------------------------
+
+
+def data_matrices(P: np.ndarray, H: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Complex data matrices ``U`` (``q nu x N nu``) and ``Y`` (``q ny x N nu``).
+
+    Parameters
+    ----------
+    P : ndarray, shape (q, N)
+        Row basis at the data points (``z^i`` for the textbook form).
+    H : ndarray, shape (N, ny, nu)
+        FRF.
+    """
+    q, N = P.shape
+    _, ny, nu = H.shape
+    # U[(i, a), (k, b)] = P[i, k] delta_ab ; Y[(i, a), (k, b)] = P[i, k] H[k, a, b]
+    U = np.einsum("ik,ab->iakb", P, np.eye(nu)).reshape(q * nu, N * nu)
+    Y = np.einsum("ik,kab->iakb", P, H).reshape(q * ny, N * nu)
+    return U, Y
+
+
+def projected_output_qr(
+    basis: RowBasis, H: np.ndarray, weights: np.ndarray | None = None
+) -> np.ndarray:
+    """``L22`` of the LQ factorisation of the real-stacked data (the reference path).
+
+    Parameters
+    ----------
+    basis : RowBasis
+        Row basis at the data points.
+    H : ndarray, shape (N, ny, nu)
+        FRF.
+    weights : ndarray, shape (N,), optional
+        Non-negative weight per line (a bootstrap count); a line with weight ``c`` counts
+        as ``c`` copies of itself.
+
+    Returns
+    -------
+    ndarray, shape (q ny, q ny)
+        ``L22``, lower triangular.
+    """
+    P = basis.values
+    if weights is not None:
+        keep = weights > 0
+        root = np.sqrt(weights[keep])
+        P, H = P[:, keep] * root[None, :], H[keep]
+    U, Y = data_matrices(P, H)
+    X = np.vstack([np.hstack([U.real, U.imag]), np.hstack([Y.real, Y.imag])])
+    R = sla.qr(X.T, mode="r", check_finite=False)[0]
+    m = basis.q * H.shape[2]
+    return R.T[m:, m:]
+
+
+# ---------------------------------------------------------------------------------------
+# The Gram (Schur complement) path
+# ---------------------------------------------------------------------------------------
+
+
+@dataclass
+class GramSums:
+    """Weighted sums over lines from which the Gram matrix of the data is assembled.
+
+    Monomial basis (block Toeplitz), for replicate ``b`` and power difference ``d``:
+    ``uu[b, d + q - 1] = sum_k c_bk z_k^d``, ``yu[b, d + q - 1] = sum_k c_bk z_k^d H_k``
+    (``d = -(q-1) .. q-1``) and ``yy[b, d] = sum_k c_bk z_k^d H_k H_k^H`` (``d = 0 .. q-1``).
+
+    General basis, with ``a_ij(k) = p_i(z_k) conj(p_j(z_k))``: ``uu[b, i, j]``,
+    ``yu[b, i, j]`` and ``yy[b, i, j]`` are the same sums with ``a_ij`` for ``z^d``.
+    """
+
+    uu: np.ndarray
+    yu: np.ndarray
+    yy: np.ndarray
+    q: int
+    toeplitz: bool
+
+    def blocks(self, b: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Real Gram blocks of replicate ``b``: ``tu`` (q, q) with ``Guu = tu kron I``,
+        ``gyu`` (q, q, ny, nu) and ``gyy`` (q, q, ny, ny), indexed by block row and column."""
+        if not self.toeplitz:
+            return self.uu[b].real, self.yu[b].real, self.yy[b].real
+        q = self.q
+        idx = np.arange(q)
+        dmat = idx[:, None] - idx[None, :]  # i - j
+        s = self.yy[b]
+        gyy = np.where(
+            (dmat >= 0)[:, :, None, None],
+            s[np.abs(dmat)],
+            s[np.abs(dmat)].conj().transpose(0, 1, 3, 2),
+        )
+        return self.uu[b][dmat + q - 1].real, self.yu[b][dmat + q - 1].real, gyy.real
+
+
+def _line_features(P: np.ndarray, H: np.ndarray, toeplitz: bool) -> np.ndarray:
+    """Per-line products of basis values and data, flattened into one complex row per line."""
+    q, N = P.shape
+    HH = np.einsum("kab,kcb->kac", H, H.conj())  # (N, ny, ny)
+    if toeplitz:
+        z = P[1] if q > 1 else np.ones(N, dtype=complex)
+        pa = z[:, None] ** np.arange(-(q - 1), q)[None, :]  # (N, 2q-1)
+        py = pa[:, q - 1 :]
+    else:
+        pa = (P.T[:, :, None] * P.T[:, None, :].conj()).reshape(N, q * q)
+        py = pa
+    fyu = pa[:, :, None, None] * H[:, None, :, :]
+    fyy = py[:, :, None, None] * HH[:, None, :, :]
+    return np.concatenate([pa, fyu.reshape(N, -1), fyy.reshape(N, -1)], axis=1)
+
+
+def gram_sums(
+    basis: RowBasis,
+    H: np.ndarray,
+    weights: np.ndarray | None = None,
+    chunk_bytes: int = 64 * 2**20,
+) -> GramSums:
+    """Weighted Gram sums for one or many sets of line weights, in one matrix product.
+
+    Parameters
+    ----------
+    basis : RowBasis
+        Row basis at the data points.
+    H : ndarray, shape (N, ny, nu)
+        FRF.
+    weights : ndarray, shape (B, N) or (N,), optional
+        Line weights per replicate (bootstrap counts); default one replicate of ones.
+    chunk_bytes : int
+        Memory allowed for the per-line feature block; lines are processed in chunks so
+        that memory stays bounded whatever ``N``.
+
+    Returns
+    -------
+    GramSums
+        With a leading replicate axis of length ``B``.
+    """
+    N, ny, nu = H.shape
+    q, toeplitz = basis.q, basis.monomial
+    c = np.ones((1, N)) if weights is None else np.atleast_2d(np.asarray(weights, float))
+    n_a = 2 * q - 1 if toeplitz else q * q
+    n_y = q if toeplitz else q * q
+    n_feat = n_a * (1 + ny * nu) + n_y * ny * ny
+    step = max(1, int(chunk_bytes // (32 * n_feat)))
+    acc = np.zeros((c.shape[0], 2 * n_feat))
+    for start in range(0, N, step):
+        sl = slice(start, min(N, start + step))
+        F = _line_features(basis.values[:, sl], H[sl], toeplitz)
+        # real weights times complex features as one real matrix product
+        acc += c[:, sl] @ np.ascontiguousarray(F).view(float)
+    tot = acc.view(complex)
+    B = c.shape[0]
+    shape_a = (B, 2 * q - 1) if toeplitz else (B, q, q)
+    shape_y = (B, q) if toeplitz else (B, q, q)
+    uu = tot[:, :n_a].reshape(shape_a)
+    yu = tot[:, n_a : n_a * (1 + ny * nu)].reshape(shape_a + (ny, nu))
+    yy = tot[:, n_a * (1 + ny * nu) :].reshape(shape_y + (ny, ny))
+    return GramSums(uu=uu, yu=yu, yy=yy, q=q, toeplitz=toeplitz)
+
+
+def schur_complement(sums: GramSums, b: int = 0) -> np.ndarray:
+    """``L22 L22^T = Gyy - Gyu Guu^-1 Guy`` of replicate ``b``, from its Gram sums.
+
+    Returns
+    -------
+    ndarray, shape (q ny, q ny)
+        Symmetric positive semi-definite.
+    """
+    tu, gyu, gyy = sums.blocks(b)
+    q, _, ny, nu = gyu.shape
+    gyy = gyy.transpose(0, 2, 1, 3).reshape(q * ny, q * ny)
+    # Guu = tu kron I_nu: whiten with the Cholesky factor of the small q x q matrix.
+    lu = np.linalg.cholesky(tu)
+    rhs = gyu.transpose(1, 0, 2, 3).reshape(q, q * ny * nu)  # rows: block column j
+    w = sla.solve_triangular(lu, rhs, lower=True, check_finite=False)
+    w = w.reshape(q, q, ny, nu).transpose(0, 3, 1, 2).reshape(q * nu, q * ny)
+    out = gyy - w.T @ w
+    return 0.5 * (out + out.T)
+
+
+# ---------------------------------------------------------------------------------------
+# Observability, A and C, B and D
+# ---------------------------------------------------------------------------------------
+
+
+def observability_from_l22(l22: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Leading ``n`` left singular vectors of ``L22`` and all its singular values."""
+    u, s, _ = np.linalg.svd(l22, full_matrices=False)
+    return u[:, :n], s
+
+
+def observability_from_schur(S: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Leading ``n`` eigenvectors of the Schur complement ``L22 L22^T``.
+
+    Returns the observability basis and the ``n`` leading singular values of ``L22``
+    (square roots of the eigenvalues, descending).
+    """
+    m = S.shape[0]
+    w, v = sla.eigh(S, subset_by_index=[m - n, m - 1], driver="evr", check_finite=False)
+    order = np.argsort(w)[::-1]
+    return v[:, order], np.sqrt(np.clip(w[order], 0.0, None))
+
+
+GRAM_MIN_EIG_RATIO = 1e-9
+"""Smallest ratio of the ``n``-th to the first eigenvalue of ``L22 L22^T`` that the Gram
+path trusts. Forming the Gram matrix squares the data, so eigenvalues below about
+``1e-16 * lambda_1`` are rounding noise; with noisy data the ratio is far above this, and
+the check only sends (near) noise-free data of high order to the QR path."""
+
+
+def observability(
+    basis: RowBasis,
+    H: np.ndarray,
+    n: int,
+    method: str = "auto",
+    weights: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray, str]:
+    """Observability basis ``O`` (``q ny x n``) of scaled FRF data.
+
+    Parameters
+    ----------
+    basis : RowBasis
+        Row basis at the data points.
+    H : ndarray, shape (N, ny, nu)
+        FRF (already scaled).
+    n : int
+        Model order.
+    method : {"auto", "gram", "qr"}
+        ``"auto"`` uses the Gram path and falls back to QR when the ``n``-th eigenvalue is
+        below :data:`GRAM_MIN_EIG_RATIO` times the first.
+    weights : ndarray, shape (N,), optional
+        Line weights (:func:`envelope_weights`, bootstrap counts, or their product).
+
+    Returns
+    -------
+    O : ndarray
+    singular_values : ndarray
+        The ``n`` leading singular values of ``L22``.
+    path : str
+        ``"gram"`` or ``"qr"``.
+    """
+    if method not in ("auto", "gram", "qr"):
+        raise ValueError(f"unknown method {method!r}")
+    if method in ("auto", "gram"):
+        O, sv = observability_from_schur(schur_complement(gram_sums(basis, H, weights)), n)
+        if method == "gram" or gram_resolves(sv):
+            return O, sv, "gram"
+    O, sv = observability_from_l22(projected_output_qr(basis, H, weights), n)
+    return O, sv[:n], "qr"
+
+
+def gram_resolves(singular_values: np.ndarray) -> bool:
+    """Whether Gram-path singular values (descending) are resolved, see
+    :data:`GRAM_MIN_EIG_RATIO`."""
+    sv = np.asarray(singular_values)
+    return bool(sv.size and sv[0] > 0 and (sv[-1] / sv[0]) ** 2 >= GRAM_MIN_EIG_RATIO)
+
+
+def shift_invariance(O: np.ndarray, ny: int, basis: RowBasis) -> tuple[np.ndarray, np.ndarray]:
+    """``A`` and ``C`` of the observability basis ``O`` (``q ny x n``).
+
+    The block rows of ``O`` are ``C p_i(A)``; the basis recurrence gives
+    ``O[:-ny] A = (shift^T kron I) O``, solved in least squares, and ``C = O[:ny] / p_0``.
+    """
+    C = O[:ny] / basis.p0
+    if basis.monomial:
+        rhs = O[ny:]
+    else:
+        q = basis.q
+        rhs = np.einsum("ij,iak->jak", basis.shift, O.reshape(q, ny, -1)).reshape((q - 1) * ny, -1)
+    A = np.linalg.lstsq(O[:-ny], rhs, rcond=None)[0]
+    return A, C
+
+
+def _modal_regressor(
+    z: np.ndarray, A: np.ndarray, C: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(C V, g, V)`` with ``g[k, a] = 1 / (z_k - lambda_a)``, so that
+    ``C (z_k I - A)^-1 = (C V) diag(g_k) V^-1``."""
+    lam, V = np.linalg.eig(A)
+    g = 1.0 / (z[:, None] - lam[None, :])
+    return C @ V, g, V
+
+
+def estimate_bd(
+    z: np.ndarray,
+    H: np.ndarray,
+    A: np.ndarray,
+    C: np.ndarray,
+    with_d: bool = True,
+    weights: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """``B`` and ``D`` by linear least squares with ``A`` and ``C`` fixed.
+
+    Minimises ``sum_k c_k || D + C (z_k I - A)^-1 B - H_k ||_F^2`` over real ``B`` and ``D``.
+    The regressor is the same for every input column, so all columns are solved at once;
+    the stacked real regressor (``2 N ny`` rows) is formed through ``eig(A)``.
+
+    Parameters
+    ----------
+    z : ndarray, shape (N,)
+        Points on the unit circle.
+    H : ndarray, shape (N, ny, nu)
+        FRF.
+    A, C : ndarray
+        Discrete-time state matrix and output matrix.
+    with_d : bool
+        Estimate the feed-through ``D`` (otherwise it is zero).
+    weights : ndarray, shape (N,), optional
+        Line weights ``c_k`` (default ones).
+
+    Returns
+    -------
+    B : ndarray, shape (n, nu)
+    D : ndarray, shape (ny, nu)
+    """
+    N, ny, nu = H.shape
+    n = A.shape[0]
+    CV, g, V = _modal_regressor(z, A, C)
+    # Phi_k = (C V) diag(g_k) V^-1  -> (N, ny, n)
+    Vinv = np.linalg.inv(V)
+    phi = np.einsum("ia,ka,aj->kij", CV, g, Vinv, optimize=True)
+    cols = [phi.reshape(N * ny, n)]
+    if with_d:
+        cols.append(np.tile(np.eye(ny), (N, 1)).astype(complex))
+    reg = np.hstack(cols)
+    rhs = H.reshape(N * ny, nu)
+    if weights is not None:
+        root = np.repeat(np.sqrt(np.asarray(weights, float)), ny)[:, None]
+        reg, rhs = reg * root, rhs * root
+    reg_r = np.vstack([reg.real, reg.imag])
+    rhs_r = np.vstack([rhs.real, rhs.imag])
+    # column scaling for conditioning
+    norms = np.linalg.norm(reg_r, axis=0)
+    norms[norms == 0] = 1.0
+    sol = np.linalg.lstsq(reg_r / norms, rhs_r, rcond=None)[0] / norms[:, None]
+    B = sol[:n]
+    D = sol[n:] if with_d else np.zeros((ny, nu))
+    return B, D
+
+
+def frequency_response(
+    A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray, points: np.ndarray
+) -> np.ndarray:
+    """``D + C (p I - A)^-1 B`` at each point ``p`` (``z`` on the circle or ``s = j w``).
+
+    Returns
+    -------
+    ndarray, shape (len(points), ny, nu)
+    """
+    CV, g, V = _modal_regressor(np.asarray(points), A, C)
+    VB = np.linalg.solve(V, B)
+    return D[None] + np.einsum("ia,ka,aj->kij", CV, g, VB, optimize=True)
+
+
+# ---------------------------------------------------------------------------------------
+# One identification
+# ---------------------------------------------------------------------------------------
+
+
+@dataclass
+class StateSpaceModel:
+    """A state-space model identified on the unit circle, with its continuous-time form.
+
+    Attributes
+    ----------
+    Ad, Bd, Cd, Dd : ndarray
+        Discrete-time model (``Bd``/``Dd`` are ``None`` when not estimated). ``Cd`` is in
+        the units of the data (the channel scaling undone).
+    T : float
+        Bilinear scale.
+    q : int
+        Block rows used.
+    singular_values : ndarray
+        Leading singular values of ``L22`` (a diagnostic for the order).
+    path : str
+        ``"gram"`` or ``"qr"``: how the observability subspace was computed.
+    """
+
+    Ad: np.ndarray
+    Bd: np.ndarray | None
+    Cd: np.ndarray
+    Dd: np.ndarray | None
+    T: float
+    q: int
+    singular_values: np.ndarray
+    path: str = "gram"
+
+    @property
+    def order(self) -> int:
+        """Number of states."""
+        return int(self.Ad.shape[0])
+
+    def continuous(self) -> tuple[np.ndarray, np.ndarray | None, np.ndarray, np.ndarray | None]:
+        """``(A, B, C, D)`` in continuous time (bilinear map back)."""
+        return d2c(self.Ad, self.Bd, self.Cd, self.Dd, self.T)
+
+    def frf(self, omega: np.ndarray) -> np.ndarray:
+        """The model's FRF at angular frequencies ``omega`` (needs ``Bd`` and ``Dd``)."""
+        from automodal.core.bilinear import to_unit_circle
+
+        if self.Bd is None or self.Dd is None:
+            raise ValueError("this model has no B and D; identify with estimate_bd=True")
+        return frequency_response(self.Ad, self.Bd, self.Cd, self.Dd, to_unit_circle(omega, self.T))
+
+
+def envelope_weights(H: np.ndarray, window: float = 0.1) -> np.ndarray:
+    """Line weights that level the FRF's overall trend: ``c_k = 1 / env_k^2``.
+
+    ``env`` is a running median of ``||H_k||`` (on a log scale) over ``window`` of the lines,
+    so that a receptance's roll-off or an accelerance's rise no longer lets one end of the
+    band dominate the fit, while resonance peaks keep their weight. Scaling whole columns
+    of the data matrices (line ``k`` in ``U`` and ``Y`` alike) keeps ``Y = O X + Gamma U``
+    exact, so the weights change only how noise is weighed. Normalised to mean one.
+
+    Measured (simulated chains, receptance): the log misfit at the true order fell from
+    0.70 to 0.31 (10 DOF, 5 % noise) and from 0.56 to 0.20 (12 DOF seen by 4 sensors),
+    and the modes that unweighted fits missed at the top of the band were found.
+    """
+    from scipy.ndimage import median_filter
+
+    N = H.shape[0]
+    mag = np.linalg.norm(H.reshape(N, -1), axis=1)
+    floor = np.max(mag) * 1e-12 if np.max(mag) > 0 else 1.0
+    logm = np.log(np.maximum(mag, floor))
+    size = max(3, int(round(window * N)) | 1)
+    env = median_filter(logm, size=size, mode="nearest")
+    c = np.exp(-2.0 * (env - np.max(env)))
+    return c / np.mean(c)
+
+
+def channel_scales(H: np.ndarray) -> np.ndarray:
+    """RMS of each output channel over lines and inputs (ones where a channel is zero)."""
+    rms = np.sqrt(np.mean(np.abs(H) ** 2, axis=(0, 2)))
+    rms[~(rms > 0)] = 1.0
+    return rms
+
+
+def identify(
+    z: np.ndarray,
+    H: np.ndarray,
+    n: int,
+    T: float,
+    q: int | None = None,
+    method: str = "auto",
+    estimate_bd_: bool = True,
+    scale: bool = True,
+    basis: str = "auto",
+    weights: np.ndarray | None = None,
+) -> StateSpaceModel:
+    """Identify a state-space model of order ``n`` from FRF data on the unit circle.
+
+    Parameters
+    ----------
+    z : ndarray, shape (N,)
+        Data points on the unit circle (:func:`automodal.core.bilinear.to_unit_circle`).
+    H : ndarray, shape (N, ny, nu)
+        FRF.
+    n : int
+        Model order (number of states).
+    T : float
+        Bilinear scale that produced ``z`` (kept in the model for the map back).
+    q : int, optional
+        Block rows; default :func:`block_rows`.
+    method : {"auto", "gram", "qr"}
+        The fast Gram path, the reference QR path, or Gram with a fall-back to QR where
+        the Gram path cannot resolve the subspace (:func:`observability`).
+    estimate_bd_ : bool
+        Also estimate ``B`` and ``D`` (needed for FRF synthesis, not for modes).
+    scale : bool
+        Scale each output channel by its RMS before identifying (undone in ``C``).
+    basis : {"auto", "monomial", "orthonormal"}
+        Polynomial basis of the block rows (:func:`row_basis`).
+    weights : ndarray, shape (N,), optional
+        Line weights, for the projection and for ``B``, ``D`` (see :func:`envelope_weights`).
+
+    Returns
+    -------
+    StateSpaceModel
+    """
+    N, ny, nu = H.shape
+    q = block_rows(n, ny) if q is None else int(q)
+    if (q - 1) * ny < n:
+        raise ValueError(f"q = {q} block rows cannot hold order {n} with {ny} outputs")
+    if 2 * N * nu < q * (nu + ny):
+        raise ValueError(f"{N} lines are too few for order {n}: need {min_lines(n, ny, nu, q)}")
+    s = channel_scales(H) if scale else np.ones(ny)
+    Hs = H / s[None, :, None]
+    rb = row_basis(z, q, basis)
+    O, sv, path = observability(rb, Hs, n, method, weights)
+    A, Cs = shift_invariance(O, ny, rb)
+    Bd = Dd = None
+    if estimate_bd_:
+        Bd, Ds = estimate_bd(z, Hs, A, Cs, weights=weights)
+        Dd = Ds * s[:, None]
+    return StateSpaceModel(
+        Ad=A, Bd=Bd, Cd=Cs * s[:, None], Dd=Dd, T=T, q=q, singular_values=sv, path=path
+    )

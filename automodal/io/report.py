@@ -1,0 +1,588 @@
+"""The identification report, version 1 (``spec/report.md``), as JSON or HDF5.
+
+:func:`report_dict` turns a :class:`~automodal.pipeline.Result` and its input into the
+report's plain-JSON content; :func:`write_report` writes it (the suffix of the path chooses
+JSON or HDF5) atomically, so that a failed run leaves no report at all; :func:`read_report`
+reads either format back into the same dict; :func:`format_table` is the table the command
+line prints.
+
+Every number in the dict is a plain Python ``int`` or ``float`` (never a numpy scalar) and
+is finite: a NaN or infinity becomes ``None`` (JSON ``null``) and adds a line to
+``warnings`` naming the field.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import hashlib
+import json
+import math
+import os
+import re
+from pathlib import Path
+from typing import Any
+
+import h5py
+import numpy as np
+
+from automodal.errors import InputError
+from automodal.frfdata import FRFData
+from automodal.io.atomic import atomic_path
+from automodal.pipeline import IdentifiedMode, PoleTable, Result
+
+__all__ = [
+    "FORMAT_NAME",
+    "FORMAT_VERSION",
+    "format_table",
+    "read_report",
+    "report_dict",
+    "save_report",
+    "write_report",
+]
+
+FORMAT_NAME = "automodal-report"
+"""Value of the report's ``format`` key (and of the HDF5 root attribute)."""
+
+FORMAT_VERSION = 1
+"""The report version this module writes, and the newest it reads."""
+
+_JSON_SUFFIXES = (".json",)
+_HDF5_SUFFIXES = (".h5", ".hdf5")
+_HASH_CHUNK = 1 << 20
+
+_MODE_FLOATS = (
+    "frequency_hz",
+    "frequency_std_hz",
+    "damping_ratio",
+    "damping_std",
+    "physicalness",
+    "mpc",
+)
+_MODE_INTS = ("id", "n_members", "cluster", "cluster_dim")
+_MODE_PAIRS = ("frequency_ci95_hz", "damping_ci95")
+_READ_ERRORS = (OSError, RuntimeError, KeyError, ValueError, TypeError)
+
+
+class _Refused(Exception):
+    """A problem with a report file; :func:`read_report` adds the path."""
+
+
+# ------------------------------------------------------------------------------ content
+
+
+def report_dict(
+    result: Result, data: FRFData, input_path: str | os.PathLike[str] | None = None
+) -> dict:
+    """The report of one run as plain JSON-compatible Python objects.
+
+    Parameters
+    ----------
+    result : Result
+        What :func:`automodal.pipeline.identify` returned for ``data``.
+    data : FRFData
+        The test that was identified.
+    input_path : str or path-like, optional
+        The file ``data`` was read from; default ``data.source``. Its bytes are hashed
+        (SHA-256) for ``input.sha256``, which is ``None`` when there is no file.
+
+    Returns
+    -------
+    dict
+        The keys of ``spec/report.md`` (``format``, ``version``, ``automodal_version``,
+        ``created``, ``input``, ``settings``, ``modes``, ``trashbox``, ``summary``,
+        ``warnings``) plus these additions: ``input.frequency_range_hz`` (span of the whole
+        input, while ``input.band_hz`` is the analysed band), ``settings.orders`` (the
+        order scan and the reference order), per mode ``cluster``, ``cluster_dim`` and
+        ``features`` (the physicalness features), and ``summary.n_reference_clusters``.
+        ``summary.n_clusters`` counts the listed modes (every surviving cluster, a
+        near-repeated cluster once per member rank), so that ``n_physical`` of
+        ``n_clusters`` compares like with like. Modes are sorted by frequency.
+    """
+    warnings = [str(w) for w in result.warnings]
+    path = data.source if input_path is None else input_path
+    modes = sorted(result.modes, key=_frequency_key)
+    report = {
+        "format": FORMAT_NAME,
+        "version": FORMAT_VERSION,
+        "automodal_version": str(result.automodal_version),
+        "created": _utc_now(),
+        "input": _input_section(result, data, path, warnings),
+        "settings": {**result.settings, "orders": result.orders},
+        "modes": [_mode_entry(m) for m in modes],
+        "trashbox": {"n_members": result.trashbox_members},
+        "summary": _summary(result),
+        "warnings": warnings,
+    }
+    non_finite: list[str] = []
+    clean = _json_safe(report, "", non_finite)
+    clean["warnings"].extend(_non_finite_warnings(non_finite))
+    return clean
+
+
+def _utc_now() -> str:
+    """The current UTC time as ISO 8601 with seconds and ``Z``."""
+    return _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
+
+
+def _frequency_key(mode: IdentifiedMode) -> tuple[bool, float]:
+    """Sort key: by frequency, modes without a finite frequency last."""
+    f = float(mode.frequency_hz)
+    return (not math.isfinite(f), f if math.isfinite(f) else 0.0)
+
+
+def _input_section(
+    result: Result, data: FRFData, path: str | os.PathLike[str] | None, warnings: list[str]
+) -> dict[str, Any]:
+    """The ``input`` object: where the data came from and what it holds."""
+    freq = np.asarray(data.frequency, dtype=float)
+    return {
+        "path": None if path is None else os.fspath(path),
+        "sha256": _sha256(path, warnings),
+        "n_freq": data.n_freq,
+        "n_outputs": data.n_outputs,
+        "n_inputs": data.n_inputs,
+        "band_hz": list(result.band_hz),
+        "quantity": data.quantity,
+        "output_names": [str(n) for n in data.output_names],
+        "input_names": [str(n) for n in data.input_names],
+        "attributes": dict(data.attributes),
+        "frequency_range_hz": [freq[0], freq[-1]] if freq.size else [],
+    }
+
+
+def _sha256(path: str | os.PathLike[str] | None, warnings: list[str]) -> str | None:
+    """SHA-256 of a file's bytes, read in chunks; ``None`` (with a warning) if unreadable."""
+    if path is None:
+        return None
+    digest = hashlib.sha256()
+    try:
+        with open(path, "rb") as fh:
+            for chunk in iter(lambda: fh.read(_HASH_CHUNK), b""):
+                digest.update(chunk)
+    except OSError as exc:
+        reason = exc.strerror or type(exc).__name__
+        warnings.append(
+            f"input file {os.fspath(path)} could not be hashed ({reason}): sha256 is null"
+        )
+        return None
+    return digest.hexdigest()
+
+
+def _mode_entry(mode: IdentifiedMode) -> dict[str, Any]:
+    """One element of ``modes`` (numbers still unchecked; see :func:`_json_safe`)."""
+    shape, shape_std = _unit_max(mode.mode_shape, mode.mode_shape_std)
+    return {
+        "id": mode.id,
+        "frequency_hz": mode.frequency_hz,
+        "frequency_std_hz": mode.frequency_std_hz,
+        "frequency_ci95_hz": list(mode.frequency_ci95_hz),
+        "damping_ratio": mode.damping_ratio,
+        "damping_std": mode.damping_std,
+        "damping_ci95": list(mode.damping_ci95),
+        "physicalness": mode.physicalness,
+        "physical": bool(mode.physical),
+        "n_members": mode.n_members,
+        "mode_shape": {"real": shape.real, "imag": shape.imag},
+        "mode_shape_std": shape_std,
+        "mpc": mode.mpc,
+        "cluster": mode.cluster,
+        "cluster_dim": mode.cluster_dim,
+        "features": dict(mode.features),
+    }
+
+
+def _unit_max(shape: np.ndarray, shape_std: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Scale a shape so that its largest finite-magnitude entry is exactly ``1 + 0j``.
+
+    The spread is divided by the same magnitude. A shape already in this convention is
+    returned unchanged; an all-zero or all-non-finite one is left as it is.
+    """
+    psi = np.asarray(shape, dtype=complex).ravel()
+    spread = np.asarray(shape_std, dtype=float).ravel()
+    if psi.size == 0:
+        return psi, spread
+    mag = np.abs(psi)
+    k = int(np.argmax(np.where(np.isfinite(mag), mag, -1.0)))
+    if not (np.isfinite(mag[k]) and mag[k] > 0) or psi[k] == 1:
+        return psi, spread
+    psi = psi / psi[k]
+    psi[k] = 1.0
+    return psi, spread / mag[k]
+
+
+def _summary(result: Result) -> dict[str, Any]:
+    """The ``summary`` object (shared by the report and :func:`format_table`)."""
+    return {
+        "n_physical": sum(1 for m in result.modes if m.physical),
+        "n_clusters": len(result.modes),
+        "n_bootstrap": result.settings.get("n_bootstrap"),
+        "runtime_s": result.runtime_s,
+        "n_reference_clusters": result.n_clusters,
+    }
+
+
+def _json_safe(value: Any, where: str, non_finite: list[str]) -> Any:
+    """A copy of ``value`` made of plain JSON types; non-finite numbers become ``None``.
+
+    Parameters
+    ----------
+    value : any
+        Dicts, lists, tuples, arrays, numpy or Python scalars, strings, bytes, paths.
+    where : str
+        The field's path in the report (``modes[2].mode_shape.real[0]``), for warnings.
+    non_finite : list of str
+        Receives the path of every NaN or infinity replaced by ``None``.
+    """
+    if value is None:
+        return None
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    if isinstance(value, str):
+        return str(value)
+    if isinstance(value, (int, np.integer)):
+        return int(value)
+    if isinstance(value, (float, np.floating)):
+        x = float(value)
+        if math.isfinite(x):
+            return x
+        non_finite.append(where)
+        return None
+    if isinstance(value, (complex, np.complexfloating)):
+        return {
+            "real": _json_safe(value.real, f"{where}.real", non_finite),
+            "imag": _json_safe(value.imag, f"{where}.imag", non_finite),
+        }
+    if isinstance(value, dict):
+        return {
+            str(k): _json_safe(v, f"{where}.{k}" if where else str(k), non_finite)
+            for k, v in value.items()
+        }
+    if isinstance(value, np.ndarray):
+        value = value.tolist()
+    if isinstance(value, (list, tuple)):
+        return [_json_safe(v, f"{where}[{i}]", non_finite) for i, v in enumerate(value)]
+    if isinstance(value, bytes):
+        return value.decode("utf-8", errors="replace")
+    if isinstance(value, os.PathLike):
+        return os.fspath(value)
+    if isinstance(value, np.generic):
+        return _json_safe(value.item(), where, non_finite)
+    return str(value)
+
+
+def _non_finite_warnings(paths: list[str]) -> list[str]:
+    """One warning per field that had non-finite numbers (list elements counted together).
+
+    The words ``NaN`` and ``Infinity`` are avoided so that a scan of the JSON text for them
+    finds none.
+    """
+    counts: dict[str, int] = {}
+    for p in paths:
+        field = re.sub(r"\[\d+\]$", "", p)
+        counts[field] = counts.get(field, 0) + 1
+    return [
+        f"report field {field}: {n} value(s) not finite, written as null"
+        for field, n in counts.items()
+    ]
+
+
+# ------------------------------------------------------------------------------ writing
+
+
+def write_report(
+    path: str | os.PathLike[str],
+    result: Result,
+    data: FRFData,
+    input_path: str | os.PathLike[str] | None = None,
+) -> None:
+    """Write the report of a run as JSON or HDF5, atomically.
+
+    Parameters
+    ----------
+    path : str or path-like
+        ``*.json`` for JSON (indented by 2), ``*.h5`` or ``*.hdf5`` for HDF5 (the spec's
+        layout, with every bootstrap pole under ``/poles``; the whole JSON report is kept
+        in the root attribute ``report_json``).
+    result, data, input_path
+        As for :func:`report_dict`.
+
+    Raises
+    ------
+    InputError
+        If the suffix of ``path`` is none of the above (nothing is written).
+
+    Notes
+    -----
+    The file is written to a hidden temporary file beside ``path`` and renamed onto it at
+    the end: when anything fails, ``path`` is left as it was and no temporary file stays.
+    In HDF5, ``/input``, ``/summary`` and ``/trashbox`` hold their fields as attributes
+    (``None`` left out, ``input.attributes`` as JSON text), ``/modes`` one dataset per
+    field with one row per mode (a ``null`` number is NaN there), ``/poles`` every
+    bootstrap pole, and the root attribute ``warnings`` the warnings. To write the same report to several files use :func:`report_dict` once and
+    :func:`save_report` for each.
+    """
+    _format_of(path)
+    save_report(path, report_dict(result, data, input_path), result.poles)
+
+
+def save_report(
+    path: str | os.PathLike[str], report: dict, poles: PoleTable | None = None
+) -> None:
+    """Write a report dict made by :func:`report_dict`, as JSON or HDF5, atomically.
+
+    Parameters
+    ----------
+    path : str or path-like
+        ``*.json``, ``*.h5`` or ``*.hdf5``.
+    report : dict
+        The report content (must be finite: NaN is refused with ``ValueError``).
+    poles : PoleTable, optional
+        Every bootstrap pole, written under ``/poles`` of an HDF5 report (ignored for JSON).
+
+    Raises
+    ------
+    InputError
+        For an unknown suffix, before anything is written.
+    """
+    kind = _format_of(path)
+    with atomic_path(path) as tmp:
+        if kind == "json":
+            _write_json(tmp, report)
+        else:
+            _write_hdf5(tmp, report, poles)
+
+
+def _format_of(path: str | os.PathLike[str]) -> str:
+    """``"json"`` or ``"hdf5"`` from the suffix; :class:`InputError` otherwise."""
+    suffix = Path(path).suffix.lower()
+    if suffix in _JSON_SUFFIXES:
+        return "json"
+    if suffix in _HDF5_SUFFIXES:
+        return "hdf5"
+    raise InputError(
+        f"unknown report suffix {suffix or '(none)'!r}: use .json, .h5 or .hdf5",
+        os.fspath(path),
+    )
+
+
+def _write_json(path: Path, report: dict) -> None:
+    """The report as indented UTF-8 JSON."""
+    with open(path, "w", encoding="utf-8") as fh:
+        json.dump(report, fh, indent=2, ensure_ascii=False, allow_nan=False)
+        fh.write("\n")
+
+
+def _write_hdf5(path: Path, report: dict, poles: PoleTable | None) -> None:
+    """The report in the spec's HDF5 layout, plus its JSON text in ``report_json``."""
+    text = json.dumps(report, ensure_ascii=False, allow_nan=False)
+    strings = h5py.string_dtype()
+    with h5py.File(path, "w") as f:
+        for key in ("format", "version", "automodal_version", "created"):
+            f.attrs[key] = report[key]
+        f.attrs["settings"] = json.dumps(report["settings"], ensure_ascii=False)
+        f.attrs["warnings"] = np.array(report["warnings"], dtype=strings)
+        f.attrs["report_json"] = text
+        _write_attributes(f.create_group("input"), report["input"])
+        _write_attributes(f.create_group("summary"), report["summary"])
+        _write_attributes(f.create_group("trashbox"), report["trashbox"])
+        _write_modes(f.create_group("modes"), report["modes"], int(report["input"]["n_outputs"]))
+        if poles is not None:
+            _write_poles(f.create_group("poles"), poles)
+
+
+def _write_attributes(group: h5py.Group, fields: dict[str, Any]) -> None:
+    """Fields as HDF5 attributes: dicts as JSON text, ``None`` left out, null numbers NaN."""
+    for key, value in fields.items():
+        if value is None:
+            continue
+        if isinstance(value, dict):
+            group.attrs[key] = json.dumps(value, ensure_ascii=False)
+        elif isinstance(value, list) and all(isinstance(v, str) for v in value):
+            group.attrs[key] = np.array(value, dtype=h5py.string_dtype())
+        elif isinstance(value, list):
+            group.attrs[key] = _floats(value)
+        else:
+            group.attrs[key] = value
+
+
+def _floats(values: list[Any]) -> np.ndarray:
+    """A float array from JSON numbers, ``None`` as NaN."""
+    return np.array([np.nan if v is None else v for v in values], dtype=float)
+
+
+def _write_modes(group: h5py.Group, modes: list[dict[str, Any]], n_outputs: int) -> None:
+    """One dataset per mode field, one row per mode (``mode_shape`` complex)."""
+    n = len(modes)
+    for key in _MODE_FLOATS:
+        group.create_dataset(key, data=_floats([m[key] for m in modes]))
+    for key in _MODE_INTS:
+        if all(key in m for m in modes):
+            group.create_dataset(key, data=np.array([m[key] for m in modes], dtype=np.int64))
+    for key in _MODE_PAIRS:
+        group.create_dataset(key, data=_floats([x for m in modes for x in m[key]]).reshape(n, 2))
+    group.create_dataset("physical", data=np.array([m["physical"] for m in modes], dtype=bool))
+    real = _floats([x for m in modes for x in m["mode_shape"]["real"]])
+    imag = _floats([x for m in modes for x in m["mode_shape"]["imag"]])
+    group.create_dataset("mode_shape", data=(real + 1j * imag).reshape(n, n_outputs))
+    spread = _floats([x for m in modes for x in m["mode_shape_std"]])
+    group.create_dataset("mode_shape_std", data=spread.reshape(n, n_outputs))
+    names = sorted({k for m in modes for k in m.get("features", {})})
+    for name in names:
+        values = [m.get("features", {}).get(name) for m in modes]
+        group.create_dataset(f"features/{name}", data=_floats(values))
+
+
+def _write_poles(group: h5py.Group, poles: PoleTable) -> None:
+    """Every bootstrap pole: frequency, damping, cluster (-1 Trashbox), replicate."""
+    group.attrs["description"] = "every bootstrap pole; cluster -1 is the Trashbox"
+    group.create_dataset("frequency_hz", data=np.asarray(poles.frequency_hz, dtype=float))
+    group.create_dataset("damping_ratio", data=np.asarray(poles.damping_ratio, dtype=float))
+    group.create_dataset("cluster", data=np.asarray(poles.cluster, dtype=np.int64))
+    group.create_dataset("replicate", data=np.asarray(poles.replicate, dtype=np.int64))
+
+
+# ------------------------------------------------------------------------------ reading
+
+
+def read_report(path: str | os.PathLike[str]) -> dict:
+    """Read a report written by :func:`write_report` (JSON or HDF5).
+
+    Parameters
+    ----------
+    path : str or path-like
+        ``*.json`` or ``*.h5``/``*.hdf5``; with another suffix the content decides.
+
+    Returns
+    -------
+    dict
+        The same dict :func:`report_dict` made (an HDF5 report gives its ``report_json``).
+
+    Raises
+    ------
+    InputError
+        If the file is missing, unreadable, not JSON or HDF5, not an automodal report, or of
+        a newer report version. The message names the file.
+    """
+    source = os.fspath(path)
+    p = Path(path)
+    try:
+        if not p.exists():
+            raise _Refused("no such report file")
+        if not p.is_file():
+            raise _Refused("not a file")
+        report = _read_hdf5(p) if _is_hdf5_report(p) else _read_json(p)
+        _check_header(report)
+    except _Refused as exc:
+        raise InputError(str(exc), source) from None
+    except _READ_ERRORS as exc:
+        msg = " ".join(str(exc).split()) or type(exc).__name__
+        raise InputError(f"cannot read the report: {msg}", source) from exc
+    return report
+
+
+def _is_hdf5_report(path: Path) -> bool:
+    """Whether to read ``path`` as HDF5: by suffix, or by content for other suffixes."""
+    suffix = path.suffix.lower()
+    if suffix in _HDF5_SUFFIXES:
+        return True
+    if suffix in _JSON_SUFFIXES:
+        return False
+    return bool(h5py.is_hdf5(path))
+
+
+def _read_json(path: Path) -> Any:
+    """Parse a JSON report."""
+    try:
+        return json.loads(path.read_text(encoding="utf-8"))
+    except UnicodeDecodeError:
+        raise _Refused("not a JSON report (not UTF-8 text)") from None
+    except json.JSONDecodeError as exc:
+        raise _Refused(f"not a valid JSON report ({exc})") from None
+
+
+def _read_hdf5(path: Path) -> Any:
+    """The report dict kept in an HDF5 report's ``report_json`` attribute."""
+    if not h5py.is_hdf5(path):
+        raise _Refused("not an HDF5 file (or truncated)")
+    with h5py.File(path, "r") as f:
+        text = f.attrs.get("report_json")
+    if text is None:
+        raise _Refused("no 'report_json' attribute: not an automodal report")
+    if isinstance(text, bytes):
+        text = text.decode("utf-8")
+    try:
+        return json.loads(str(text))
+    except json.JSONDecodeError as exc:
+        raise _Refused(f"the 'report_json' attribute is not valid JSON ({exc})") from None
+
+
+def _check_header(report: Any) -> None:
+    """Refuse what is not an automodal report this version can read."""
+    if not isinstance(report, dict) or report.get("format") != FORMAT_NAME:
+        raise _Refused(f"not an automodal report (format is not {FORMAT_NAME!r})")
+    version = report.get("version")
+    if isinstance(version, bool) or not isinstance(version, int):
+        raise _Refused(f"report version {version!r} is not an integer")
+    if version > FORMAT_VERSION:
+        raise _Refused(
+            f"report version {version} is newer than this automodal reads ({FORMAT_VERSION})"
+        )
+    if not isinstance(report.get("modes"), list):
+        raise _Refused("the report has no list of modes")
+
+
+# ------------------------------------------------------------------------------ the table
+
+
+def format_table(result: Result) -> str:
+    """The modes of a run as an aligned text table with a one-line summary.
+
+    Parameters
+    ----------
+    result : Result
+
+    Returns
+    -------
+    str
+        A header, one row per mode sorted by frequency (id, frequency in Hz ± std, damping
+        in % ± std, physicalness, ``physical`` or ``-``, members, MPC), and a summary
+        line; no trailing newline.
+    """
+    header = ["id", "frequency (Hz)", "damping (%)", "physicalness", "class", "members", "MPC"]
+    rows = [
+        [
+            str(m.id),
+            f"{m.frequency_hz:.4f} ± {m.frequency_std_hz:.4f}",
+            f"{100 * m.damping_ratio:.3f} ± {100 * m.damping_std:.3f}",
+            f"{m.physicalness:.2f}",
+            "physical" if m.physical else "-",
+            str(m.n_members),
+            f"{m.mpc:.3f}",
+        ]
+        for m in sorted(result.modes, key=_frequency_key)
+    ]
+    widths = [max(len(r[i]) for r in [header, *rows]) for i in range(len(header))]
+    left = {4}
+
+    def line(cells: list[str]) -> str:
+        parts = [
+            c.ljust(w) if i in left else c.rjust(w) for i, (c, w) in enumerate(zip(cells, widths))
+        ]
+        return "  ".join(parts).rstrip()
+
+    lines = [line(header), line(["-" * w for w in widths])]
+    lines += [line(r) for r in rows] or ["(no mode survived)"]
+    lines.append(_summary_line(_summary(result), result.trashbox_members))
+    return "\n".join(lines)
+
+
+def _summary_line(summary: dict[str, Any], trashbox: int) -> str:
+    """``3 physical of 9 clusters; 812 poles in the Trashbox; ...``."""
+    parts = [
+        f"{summary['n_physical']} physical of {summary['n_clusters']} clusters",
+        f"{trashbox} poles in the Trashbox",
+    ]
+    if summary["n_bootstrap"] is not None:
+        parts.append(f"{summary['n_bootstrap']} bootstrap replicates")
+    parts.append(f"runtime {summary['runtime_s']:.1f} s")
+    return "; ".join(parts)

@@ -1,0 +1,544 @@
+"""The automated pipeline: from an :class:`FRFData` to identified modes with physicalness.
+
+Steps (``method.md`` sections 1-6): band and scaling; order scan and the excessive
+reference order; reference model and its two subspaces; bootstrap replicates (A and C
+only, batched Gram sums, parallel over processes); one-pass assignment with a Trashbox;
+trimming; three features per cluster and anchored fuzzy c-means; per-cluster statistics.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from automodal import __version__
+from automodal.core import bootstrap, clustering, order, physicalness, subspace
+from automodal.core.bilinear import default_scale, to_unit_circle
+from automodal.core.correlation import moc_vectors
+from automodal.core.modal import ModeSet, modes_of_discrete, mpc, normalise_shapes, unit_max_shapes
+from automodal.errors import InputError
+from automodal.frfdata import FRFData
+
+BOOTSTRAP_LINE_FRACTION = 0.6
+"""Unique lines in a frequency-line replicate are about 63 % of all lines: the order is
+limited so that a replicate still has enough (``2 * 0.6 N nu >= q (nu + ny)``)."""
+
+
+MAX_SCAN_ORDER = 240
+"""Highest order of the automatic misfit scan (``--order`` can set a lower limit)."""
+
+
+@dataclass
+class Settings:
+    """Every parameter that influences a run (all have automatic defaults).
+
+    Attributes
+    ----------
+    band_hz : (float, float) or None
+        Analysed band; default the data's span (a 0 Hz line is left out).
+    n_bootstrap : int
+        Bootstrap replicates.
+    seed : int
+        Seed of the resampling; the same seed gives the same result whatever ``jobs``.
+    max_order : int or None
+        Largest model order (states) considered; default what the data allow.
+    jobs : int or None
+        Processes for the replicates; default all cores.
+    threshold : float
+        ``tau_1``, the correlation a mode needs to join a cluster.
+    zeta_max : float
+        Largest damping ratio of a physical candidate.
+    min_physicalness : float
+        Physicalness from which a cluster is called physical.
+    coalescence : float
+        Poles closer than this many half-power bandwidths form one group.
+    """
+
+    band_hz: tuple[float, float] | None = None
+    n_bootstrap: int = 100
+    seed: int = 0
+    max_order: int | None = None
+    jobs: int | None = None
+    threshold: float = 0.8
+    zeta_max: float = 0.2
+    min_physicalness: float = 0.5
+    coalescence: float = 1.0
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain-JSON form (``jobs`` left out: it never changes the result)."""
+        d = dataclasses.asdict(self)
+        d.pop("jobs")
+        if d["band_hz"] is not None:
+            d["band_hz"] = [float(x) for x in d["band_hz"]]
+        return d
+
+
+@dataclass
+class IdentifiedMode:
+    """One reported mode: a cluster (or one member rank of a near-repeated cluster)."""
+
+    id: int
+    frequency_hz: float
+    frequency_std_hz: float
+    frequency_ci95_hz: tuple[float, float]
+    damping_ratio: float
+    damping_std: float
+    damping_ci95: tuple[float, float]
+    physicalness: float
+    physical: bool
+    n_members: int
+    mode_shape: np.ndarray
+    mode_shape_std: np.ndarray
+    mpc: float
+    cluster: int
+    cluster_dim: int
+    features: dict[str, float]
+
+
+@dataclass
+class PoleTable:
+    """Every bootstrap pole, for plots: cluster ``-1`` is the Trashbox."""
+
+    frequency_hz: np.ndarray
+    damping_ratio: np.ndarray
+    cluster: np.ndarray
+    replicate: np.ndarray
+
+
+@dataclass
+class Result:
+    """The outcome of one run of the pipeline."""
+
+    modes: list[IdentifiedMode]
+    trashbox_members: int
+    n_clusters: int
+    settings: dict[str, Any]
+    warnings: list[str]
+    poles: PoleTable
+    band_hz: tuple[float, float]
+    orders: dict[str, Any]
+    runtime_s: float
+    automodal_version: str = __version__
+    reference_model: subspace.StateSpaceModel | None = field(default=None, repr=False)
+
+    @property
+    def physical_modes(self) -> list[IdentifiedMode]:
+        """The modes called physical."""
+        return [m for m in self.modes if m.physical]
+
+
+# ---------------------------------------------------------------------------------------
+# Pieces
+# ---------------------------------------------------------------------------------------
+
+
+def select_band(
+    data: FRFData, band_hz: tuple[float, float] | None, warnings: list[str]
+) -> tuple[np.ndarray, np.ndarray, tuple[float, float]]:
+    """Lines of the analysed band (a 0 Hz line is always left out)."""
+    f = data.frequency
+    lo, hi = (float(f[0]), float(f[-1])) if band_hz is None else map(float, band_hz)
+    if band_hz is not None and not (0 <= lo < hi):
+        raise InputError(f"band {lo:g}-{hi:g} Hz is not a valid band", data.source)
+    keep = (f >= lo) & (f <= hi) & (f > 0)
+    if band_hz is None and f[0] == 0:
+        warnings.append("the 0 Hz line was left out of the analysis")
+    if not keep.any():
+        raise InputError(f"no frequency line in the band {lo:g}-{hi:g} Hz", data.source)
+    fk = f[keep]
+    return fk, data.frf[keep], (float(fk[0]), float(fk[-1]))
+
+
+def order_limit(n_lines: int, ny: int, nu: int) -> int:
+    """Largest even order the data allow, bootstrap replicates included."""
+    budget = 2.0 * BOOTSTRAP_LINE_FRACTION * n_lines * nu
+    n = 2
+    while True:
+        nxt = n + 2
+        q = subspace.block_rows(nxt, ny)
+        if q * (nu + ny) > budget or nxt > 2000:
+            return n if subspace.block_rows(n, ny) * (nu + ny) <= budget else 0
+        n = nxt
+
+
+def count_peaks(H: np.ndarray, window: int = 5) -> int:
+    """Resonance-like peaks of the mean magnitude over channels (sizes the order scan).
+
+    A line counts when it is the largest within ``window`` lines on either side and stands
+    above the smallest value there by more than the threshold: ``max(0.5, 6 s)`` on the
+    natural-log scale, with ``s`` the line-to-line roughness of the log magnitude (robust:
+    median absolute second difference). On pure noise the roughness is large and few
+    "peaks" count, which keeps the scan short.
+    """
+    from scipy.ndimage import maximum_filter1d, minimum_filter1d
+
+    mag = np.mean(np.abs(H), axis=(1, 2))
+    if not np.any(mag > 0):
+        return 0
+    logm = np.log(np.maximum(mag, np.max(mag) * 1e-12))
+    rough = 1.4826 * np.median(np.abs(np.diff(logm, 2))) / np.sqrt(6.0) if logm.size > 2 else 0.0
+    thr = max(0.5, 6.0 * rough)
+    size = 2 * window + 1
+    is_max = logm >= maximum_filter1d(logm, size, mode="nearest")
+    rise = logm - minimum_filter1d(logm, 8 * size, mode="nearest")
+    return int(np.count_nonzero(is_max & (rise > thr)))
+
+
+def scan_orders(n_scan: int) -> np.ndarray:
+    """Orders of the misfit scan: every even order to 60, then steps of 4, then of 8 above 120."""
+    orders = [n for n in range(2, min(n_scan, 60) + 1, 2)]
+    orders += [n for n in range(64, min(n_scan, 120) + 1, 4)]
+    orders += [n for n in range(128, n_scan + 1, 8)]
+    return np.array(orders, dtype=int)
+
+
+def _replicate_chunk(
+    sums: subspace.GramSums,
+    rows: range,
+    n: int,
+    basis: subspace.RowBasis,
+    T: float,
+    H: np.ndarray,
+    weights: np.ndarray,
+) -> list[bootstrap.ReplicateModes]:
+    """Identify the replicates ``rows`` (run in a worker process, one BLAS thread)."""
+    from threadpoolctl import threadpool_limits
+
+    ny = H.shape[1]
+    out = []
+    with threadpool_limits(1):
+        for b in rows:
+            S = subspace.schur_complement(sums, b)
+            out.append(
+                bootstrap.replicate_from_schur(S, n, basis, T, ny, qr_data=(H, weights[b]))
+            )
+    return out
+
+
+def run_replicates(
+    basis: subspace.RowBasis,
+    H: np.ndarray,
+    n: int,
+    T: float,
+    weights: np.ndarray,
+    jobs: int | None,
+    progress: Callable[[int], None] | None = None,
+) -> list[bootstrap.ReplicateModes]:
+    """All replicates' models: one batched Gram product, then small problems in parallel.
+
+    The result does not depend on ``jobs``: each replicate is computed the same way, with
+    one BLAS thread, and results are gathered in replicate order.
+    """
+    sums = subspace.gram_sums(basis, H, weights)
+    B = weights.shape[0]
+    n_jobs = _n_jobs(jobs, B)
+    chunk = max(1, int(np.ceil(B / (4 * n_jobs)))) if n_jobs > 1 else max(1, B // 20 or 1)
+    rows = [range(i, min(B, i + chunk)) for i in range(0, B, chunk)]
+
+    def sub(r: range) -> subspace.GramSums:
+        sl = slice(r.start, r.stop)
+        s = dataclasses.replace(sums, uu=sums.uu[sl], yu=sums.yu[sl], yy=sums.yy[sl])
+        return s
+
+    results: list[bootstrap.ReplicateModes] = []
+    if n_jobs == 1:
+        for r in rows:
+            results.extend(_replicate_chunk(sub(r), range(len(r)), n, basis, T, H, weights[r.start : r.stop]))
+            if progress:
+                progress(len(r))
+        return results
+    from joblib import Parallel, delayed
+
+    par = Parallel(n_jobs=n_jobs, return_as="generator")
+    calls = (
+        delayed(_replicate_chunk)(sub(r), range(len(r)), n, basis, T, H, weights[r.start : r.stop])
+        for r in rows
+    )
+    for r, part in zip(rows, par(calls)):
+        results.extend(part)
+        if progress:
+            progress(len(r))
+    return results
+
+
+def _n_jobs(jobs: int | None, n_tasks: int) -> int:
+    import os
+
+    if jobs is None or jobs <= 0:
+        jobs = os.cpu_count() or 1
+    return max(1, min(int(jobs), n_tasks))
+
+
+def _percentiles(x: np.ndarray) -> tuple[float, float]:
+    lo, hi = np.percentile(x, [2.5, 97.5])
+    return float(lo), float(hi)
+
+
+def _std(x: np.ndarray) -> float:
+    return float(np.std(x, ddof=1)) if x.size > 1 else 0.0
+
+
+def _shape_spread(rep: np.ndarray, members: np.ndarray) -> np.ndarray:
+    """Per-channel spread of member shapes aligned (complex scale) to the representative."""
+    if members.shape[1] < 2:
+        return np.zeros(rep.size)
+    alpha = (members.conj().T @ rep) / np.sum(np.abs(members) ** 2, axis=0)
+    aligned = members * alpha[None, :]
+    return np.sqrt(np.mean(np.abs(aligned - aligned.mean(axis=1, keepdims=True)) ** 2, axis=1))
+
+
+# ---------------------------------------------------------------------------------------
+# The whole run
+# ---------------------------------------------------------------------------------------
+
+
+def identify(
+    data: FRFData,
+    settings: Settings | None = None,
+    progress: Callable[[int], None] | None = None,
+) -> Result:
+    """Identify the modes of a test, with no human choice.
+
+    Parameters
+    ----------
+    data : FRFData
+        The test.
+    settings : Settings, optional
+        Overrides of the automatic choices.
+    progress : callable, optional
+        Called with the number of replicates finished since the last call.
+
+    Returns
+    -------
+    Result
+    """
+    t0 = time.perf_counter()
+    s = settings or Settings()
+    warnings: list[str] = []
+    freq, H, band = select_band(data, s.band_hz, warnings)
+    N, ny, nu = H.shape
+    omega = 2.0 * np.pi * freq
+    T = default_scale(omega[0], omega[-1])
+    z = to_unit_circle(omega, T)
+    scales = subspace.channel_scales(H)
+    Hs = H / scales[None, :, None]
+    lw = subspace.envelope_weights(Hs)
+
+    # -- orders ---------------------------------------------------------------------
+    n_limit = order_limit(N, ny, nu)
+    if s.max_order is not None:
+        need = _lines_needed(int(s.max_order), ny, nu)
+        if N < need:
+            raise InputError(
+                f"{N} frequency lines in the band are too few for model order {s.max_order}:"
+                f" the identification needs at least {need}",
+                data.source,
+            )
+        n_limit = min(n_limit, int(s.max_order) - int(s.max_order) % 2)
+    if n_limit < 4:
+        raise InputError(
+            f"{N} frequency lines in the band are too few: the identification needs at least"
+            f" {_lines_needed(4, ny, nu)}",
+            data.source,
+        )
+    n_scan = max(4, min(n_limit, MAX_SCAN_ORDER, 2 * count_peaks(Hs) + 40))
+    orders = scan_orders(n_scan)
+    q_scan = subspace.block_rows(n_scan, ny)
+    misfit = order.misfit_scan(z, Hs, orders, subspace.row_basis(z, q_scan), weights=lw)
+    n0 = order.order_at_floor(orders, misfit)
+    n_hi = order.excessive_order(n0, n_limit)
+
+    # -- reference model ------------------------------------------------------------
+    q = subspace.block_rows(n_hi, ny)
+    basis = subspace.row_basis(z, q)
+    O, sv, _ = subspace.observability(basis, Hs, n_hi, weights=lw)
+    A, Cs = subspace.shift_invariance(O, ny, basis)
+    Bd, Ds = subspace.estimate_bd(z, Hs, A, Cs, weights=lw)
+    ref_model = subspace.StateSpaceModel(
+        Ad=A, Bd=Bd, Cd=Cs * scales[:, None], Dd=Ds * scales[:, None], T=T, q=q,
+        singular_values=sv,
+    )
+    ref = modes_of_discrete(A, Cs, T, Bd)
+    contribution = modal_contribution(ref, A, Bd, Cs, Ds)
+    band_w = (float(omega[0]), float(omega[-1]))
+    cand = clustering.physical_candidates(ref.poles, band_w, s.zeta_max)
+    o_ref = moc_vectors(ref.shapes, ref.mu, q)
+    o_real = _real_mode_vectors(A, Cs, q)
+    cand_idx = np.flatnonzero(cand)
+    groups_local = clustering.coalescent_groups(ref.poles[cand_idx], s.coalescence)
+    groups = clustering.split_weak_members(
+        [cand_idx[g] for g in groups_local], contribution
+    )
+
+    # -- bootstrap ------------------------------------------------------------------
+    rng = np.random.default_rng(s.seed)
+    weights = bootstrap.line_weights(N, s.n_bootstrap, rng) * lw[None, :]
+    reps = run_replicates(basis, Hs, n_hi, T, weights, s.jobs, progress)
+    warnings.append(
+        "bootstrap over frequency lines: the spread is conditional on the one noise"
+        " realization in the data"
+    )
+    n_qr = sum(r.path == "qr" for r in reps)
+    replicate = np.concatenate([np.full(len(r.poles), b) for b, r in enumerate(reps)]).astype(int)
+    poles = np.concatenate([r.poles for r in reps]) if reps else np.zeros(0, complex)
+    mu = np.concatenate([r.mu for r in reps]) if reps else np.zeros(0, complex)
+    shapes = np.hstack([r.shapes for r in reps]) if reps else np.zeros((ny, 0), complex)
+    o = moc_vectors(shapes, mu, q)
+    groups = clustering.split_stable_groups(
+        groups, o_ref, o, replicate, s.n_bootstrap, s.threshold
+    )
+    refsub = clustering.reference_subspaces(o_ref, cand, o_real, groups)
+
+    # -- clustering -----------------------------------------------------------------
+    labels, rho = clustering.assign(o, replicate, refsub, s.threshold)
+    labels, _ = clustering.trim(labels, o, poles, replicate, refsub.dims)
+
+    modes = _summarise(labels, rho, poles, shapes, replicate, refsub, ref, scales, s, contribution)
+    wn = np.abs(poles)
+    table = PoleTable(
+        frequency_hz=wn / (2 * np.pi),
+        damping_ratio=-poles.real / np.where(wn > 0, wn, 1.0),
+        cluster=labels,
+        replicate=replicate,
+    )
+    orders_info = {
+        "scanned": [int(x) for x in orders],
+        "misfit": [float(x) for x in misfit],
+        "n0": int(n0),
+        "reference": int(n_hi),
+        "block_rows": int(q),
+        "basis": "monomial" if basis.monomial else "orthonormal",
+        "bilinear_T": float(T),
+        "replicates_on_qr_path": int(n_qr),
+    }
+    return Result(
+        modes=modes,
+        trashbox_members=int(np.sum(labels == clustering.TRASHBOX)),
+        n_clusters=len(refsub.groups),
+        settings=s.to_dict(),
+        warnings=warnings,
+        poles=table,
+        band_hz=(float(band[0]), float(band[1])),
+        orders=orders_info,
+        runtime_s=time.perf_counter() - t0,
+        reference_model=ref_model,
+    )
+
+
+def modal_contribution(
+    modes: ModeSet, A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray
+) -> np.ndarray:
+    """How much each mode makes of the model's FRF at its own resonance, in [0, ~1].
+
+    The mode's term ``R / (z - mu)`` (``R = C v l^T``) at the point of the unit circle
+    nearest its pole, over the whole model's FRF there (Frobenius norms, scaled
+    channels). A physical mode dominates its resonance (about 1); a mode that only
+    fits noise contributes little.
+    """
+    mu = modes.mu
+    if mu.size == 0 or modes.participation is None:
+        return np.zeros(mu.size)
+    lam, V = np.linalg.eig(A)
+    idx = [int(np.argmin(np.abs(lam - m))) for m in mu]
+    psi = C @ V[:, idx]
+    resid = np.einsum("ai,ib->iab", psi, modes.participation)  # (m, ny, nu)
+    zc = mu / np.abs(mu)
+    term = np.linalg.norm(resid, axis=(1, 2)) / np.maximum(np.abs(zc - mu), 1e-300)
+    total = np.linalg.norm(subspace.frequency_response(A, B, C, D, zc), axis=(1, 2))
+    return term / np.maximum(total, 1e-300)
+
+
+def _lines_needed(n: int, ny: int, nu: int) -> int:
+    q = subspace.block_rows(n, ny)
+    return int(np.ceil(q * (nu + ny) / (2.0 * BOOTSTRAP_LINE_FRACTION * nu)))
+
+
+def _real_mode_vectors(A: np.ndarray, C: np.ndarray, k: int) -> np.ndarray:
+    """MOC vectors of the real (non-oscillatory) poles of a discrete-time model."""
+    mu, V = np.linalg.eig(A)
+    real = mu.imag == 0
+    if not real.any():
+        return np.zeros((k * C.shape[0], 0), dtype=complex)
+    return moc_vectors(normalise_shapes(C @ V[:, real]), mu[real], k)
+
+
+def _summarise(
+    labels: np.ndarray,
+    rho: np.ndarray,
+    poles: np.ndarray,
+    shapes_scaled: np.ndarray,
+    replicate: np.ndarray,
+    refsub: clustering.ReferenceSubspaces,
+    ref: ModeSet,
+    scales: np.ndarray,
+    s: Settings,
+    contribution: np.ndarray,
+) -> list[IdentifiedMode]:
+    """Features, physicalness and statistics of every surviving cluster.
+
+    The decorrelation feature uses each member's correlation ``rho`` with the cluster's
+    reference subspace, and the scatter feature the members' distance from the reference
+    model's pole of the same rank: both stay meaningful for a cluster of one member.
+    """
+    clusters = [c for c in range(len(refsub.groups)) if np.any(labels == c)]
+    feats, per_cluster = [], []
+    for c in clusters:
+        idx = np.flatnonzero(labels == c)
+        rank = clustering.rank_within_replicate(poles[idx], replicate[idx])
+        group = refsub.groups[c]
+        ref_poles = ref.poles[group][np.argsort(np.abs(ref.poles[group]))]
+        centre = ref_poles[np.minimum(rank, ref_poles.size - 1)]
+        rel = np.abs(poles[idx] - centre) / np.abs(centre)
+        feats.append(
+            physicalness.cluster_features(
+                idx.size, s.n_bootstrap, int(refsub.dims[c]), rho[idx], rel,
+                float(np.max(contribution[group])),
+            )
+        )
+        per_cluster.append((idx, rank))
+    phys = physicalness.physicalness(np.array(feats)) if feats else np.zeros(0)
+
+    shapes_data = normalise_shapes(shapes_scaled * scales[:, None])
+    ref_shapes = normalise_shapes(ref.shapes * scales[:, None])
+    modes: list[IdentifiedMode] = []
+    for c, (idx, rank), f, p in zip(clusters, per_cluster, feats, phys):
+        group = refsub.groups[c]
+        group = group[np.argsort(np.abs(ref.poles[group]))]
+        for r in range(int(refsub.dims[c])):
+            sel = idx[rank == r]
+            if sel.size == 0:
+                continue
+            fr = np.abs(poles[sel]) / (2 * np.pi)
+            zt = -poles[sel].real / np.abs(poles[sel])
+            rep = ref_shapes[:, group[min(r, group.size - 1)]]
+            rep_unit = unit_max_shapes(rep[:, None])[:, 0]
+            members = unit_max_shapes(shapes_data[:, sel])
+            modes.append(
+                IdentifiedMode(
+                    id=0,
+                    frequency_hz=float(np.median(fr)),
+                    frequency_std_hz=_std(fr),
+                    frequency_ci95_hz=_percentiles(fr),
+                    damping_ratio=float(np.median(zt)),
+                    damping_std=_std(zt),
+                    damping_ci95=_percentiles(zt),
+                    physicalness=float(p),
+                    physical=bool(p >= s.min_physicalness),
+                    n_members=int(sel.size),
+                    mode_shape=rep_unit,
+                    mode_shape_std=_shape_spread(rep_unit, members),
+                    mpc=float(mpc(rep_unit)[0]),
+                    cluster=int(c),
+                    cluster_dim=int(refsub.dims[c]),
+                    features=dict(zip(physicalness.FEATURE_NAMES, map(float, f))),
+                )
+            )
+    modes.sort(key=lambda m: m.frequency_hz)
+    for i, m in enumerate(modes, start=1):
+        m.id = i
+    return modes

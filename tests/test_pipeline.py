@@ -1,0 +1,121 @@
+"""The automated pipeline on simulated tests with known modes (issue 3's "must show")."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import cases
+from automodal.pipeline import Settings, identify
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(scope="module", params=cases.ALL, ids=[f.__name__ for f in cases.ALL])
+def run(request):
+    case = request.param()
+    return case, identify(case.data, Settings(seed=0, jobs=1))
+
+
+def test_recall_precision_and_frequency_error(run):
+    case, result = run
+    s = cases.score(case, result.modes)
+    if case.name == "pure_noise":
+        assert s["n_physical"] == 0, [m.frequency_hz for m in result.physical_modes]
+        return
+    assert s["recall"] >= 0.95, s
+    assert s["precision"] >= 0.95, s
+    assert s["median_rel_error"] < 1e-3, s
+
+
+def test_damping_of_physical_modes(run):
+    case, result = run
+    for m in result.physical_modes:
+        j = int(np.argmin(np.abs(case.true_hz - m.frequency_hz)))
+        # bootstrap interval or 10 % of the true damping, whichever is wider
+        lo, hi = m.damping_ci95
+        tol = max(0.1 * case.true_zeta[j], hi - lo)
+        assert abs(m.damping_ratio - case.true_zeta[j]) < tol, (m.frequency_hz, m.damping_ratio)
+
+
+def test_result_is_self_consistent(run):
+    _, result = run
+    freqs = [m.frequency_hz for m in result.modes]
+    assert freqs == sorted(freqs)
+    assert [m.id for m in result.modes] == list(range(1, len(result.modes) + 1))
+    for m in result.modes:
+        assert 0.0 <= m.physicalness <= 1.0
+        assert m.physical == (m.physicalness >= 0.5)
+        lo, hi = m.frequency_ci95_hz
+        assert lo <= m.frequency_hz <= hi
+        k = int(np.argmax(np.abs(m.mode_shape)))
+        assert m.mode_shape[k] == 1.0
+        assert 0.0 <= m.mpc <= 1.0 + 1e-12
+    n_members = np.sum(result.poles.cluster >= 0)
+    assert n_members + result.trashbox_members == result.poles.cluster.size
+
+
+def test_same_seed_same_result_whatever_jobs():
+    case = cases.chain6_1pct()
+    a = identify(case.data, Settings(seed=7, n_bootstrap=30, jobs=1))
+    b = identify(case.data, Settings(seed=7, n_bootstrap=30, jobs=2))
+    c = identify(case.data, Settings(seed=8, n_bootstrap=30, jobs=1))
+    assert len(a.modes) == len(b.modes)
+    for x, y in zip(a.modes, b.modes):
+        assert x.frequency_hz == y.frequency_hz
+        assert x.damping_ratio == y.damping_ratio
+        assert x.physicalness == y.physicalness
+        assert np.array_equal(x.mode_shape, y.mode_shape)
+    assert np.array_equal(a.poles.cluster, b.poles.cluster)
+    assert [m.frequency_hz for m in a.modes] != [m.frequency_hz for m in c.modes]
+
+
+def _cli(*args, cwd=ROOT):
+    return subprocess.run(
+        [sys.executable, "-m", "automodal", *args], cwd=cwd, capture_output=True, text=True
+    )
+
+
+def test_cli_identify_sample_file_and_jobs_do_not_change_the_report(tmp_path):
+    out1, out2 = tmp_path / "r1.json", tmp_path / "r2.json"
+    common = ["identify", "sample_data/chain6.h5", "--bootstrap", "30", "--seed", "3"]
+    p1 = _cli(*common, "--jobs", "1", "-o", str(out1))
+    assert p1.returncode == 0, p1.stderr
+    assert "physical" in p1.stdout
+    p2 = _cli(*common, "--jobs", "2", "-o", str(out2), "--quiet")
+    assert p2.returncode == 0, p2.stderr
+    assert p2.stdout == ""
+    r1, r2 = json.loads(out1.read_text()), json.loads(out2.read_text())
+    assert r1["modes"] == r2["modes"]
+    assert r1["settings"]["seed"] == 3
+    assert r1["summary"]["n_physical"] == 6
+
+
+def test_cli_json_to_stdout():
+    p = _cli("identify", "sample_data/chain6.h5", "--bootstrap", "10", "--json", "--jobs", "1")
+    assert p.returncode == 0, p.stderr
+    report = json.loads(p.stdout)
+    assert report["format"] == "automodal-report"
+
+
+def test_cli_band_and_order_options():
+    p = _cli("identify", "sample_data/chain6.h5", "--bootstrap", "10", "--json", "--jobs", "1",
+             "--band", "10", "25", "--order", "30")
+    assert p.returncode == 0, p.stderr
+    report = json.loads(p.stdout)
+    freqs = [m["frequency_hz"] for m in report["modes"] if m["physical"]]
+    assert all(10 <= f <= 25 for f in freqs)
+    assert len(freqs) == 3  # 11.29, 18.08 and 23.83 Hz
+    assert report["settings"]["orders"]["reference"] <= 30
+
+
+def test_cli_too_few_lines_for_the_asked_order(tmp_path):
+    p = _cli("identify", "sample_data/chain6.h5", "--band", "10", "10.5", "--order", "200")
+    assert p.returncode == 2
+    assert "needs at least" in p.stderr
+    assert len(p.stderr.strip().splitlines()) == 1
