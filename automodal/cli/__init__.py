@@ -15,6 +15,7 @@ from automodal import __version__
 # command name -> (module, attribute, one-line help)
 _COMMANDS = {
     "identify": ("automodal.cli.identify_cmd", "identify", "Identify the modes in an FRF file."),
+    "plot": ("automodal.cli.plot_cmd", "plot", "Draw the figures of a report."),
     "simulate": ("automodal.cli.simulate_cmd", "simulate", "Write a synthetic test of a known system."),
 }
 

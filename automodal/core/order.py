@@ -56,7 +56,9 @@ def misfit_scan(
     basis,
     max_lines: int = 400,
     weights: np.ndarray | None = None,
-) -> np.ndarray:
+    stop_after: int | None = None,
+    patience: int = 24,
+) -> tuple[np.ndarray, np.ndarray]:
     """Misfit ``MC(n)`` of the models of each order, from one observability subspace.
 
     All orders share the block rows of ``basis``, so the projection is computed once and
@@ -77,10 +79,17 @@ def misfit_scan(
         Lines used for the fit of ``B``, ``D`` and the misfit.
     weights : ndarray, optional
         Line weights of the projection and of the ``B``, ``D`` fit.
+    stop_after : int, optional
+        From this order on, stop once the best misfit has not improved by 10 % over the
+        last ``patience`` states (the floor is reached; the scan need not go further).
+    patience : int
+        See ``stop_after``.
 
     Returns
     -------
-    ndarray
+    orders : ndarray
+        The orders evaluated (a prefix of ``orders``).
+    misfit : ndarray
         ``MC`` per order.
     """
     from automodal.core import subspace
@@ -88,11 +97,16 @@ def misfit_scan(
     N, ny, _ = H.shape
     O, _, _ = subspace.observability(basis, H, int(np.max(orders)), weights=weights)
     sub = np.unique(np.linspace(0, N - 1, min(N, max_lines)).round().astype(int))
-    out = np.empty(len(orders))
+    w_sub = None if weights is None else weights[sub]
+    out: list[float] = []
     for i, n in enumerate(orders):
         A, C = subspace.shift_invariance(O[:, :n], ny, basis)
-        B, D = subspace.estimate_bd(
-            z[sub], H[sub], A, C, weights=None if weights is None else weights[sub]
-        )
-        out[i] = log_misfit(subspace.frequency_response(A, B, C, D, z[sub]), H[sub])
-    return out
+        B, D = subspace.estimate_bd(z[sub], H[sub], A, C, weights=w_sub)
+        out.append(log_misfit(subspace.frequency_response(A, B, C, D, z[sub]), H[sub]))
+        if stop_after is not None and n >= stop_after:
+            past = np.asarray(orders[: i + 1]) <= n - patience
+            if past.any() and min(out[i + 1 - int(np.count_nonzero(~past)) :]) > 0.9 * min(
+                np.asarray(out)[past]
+            ):
+                break
+    return np.asarray(orders[: len(out)]), np.asarray(out)

@@ -316,14 +316,42 @@ def schur_complement(sums: GramSums, b: int = 0) -> np.ndarray:
     """
     tu, gyu, gyy = sums.blocks(b)
     q, _, ny, nu = gyu.shape
+    guu = np.kron(tu, np.eye(nu))
+    gyu = gyu.transpose(0, 2, 1, 3).reshape(q * ny, q * nu)
     gyy = gyy.transpose(0, 2, 1, 3).reshape(q * ny, q * ny)
-    # Guu = tu kron I_nu: whiten with the Cholesky factor of the small q x q matrix.
-    lu = np.linalg.cholesky(tu)
-    rhs = gyu.transpose(1, 0, 2, 3).reshape(q, q * ny * nu)  # rows: block column j
-    w = sla.solve_triangular(lu, rhs, lower=True, check_finite=False)
-    w = w.reshape(q, q, ny, nu).transpose(0, 3, 1, 2).reshape(q * nu, q * ny)
+    return _schur(guu, gyu, gyy)
+
+
+def _schur(guu: np.ndarray, gyu: np.ndarray, gyy: np.ndarray) -> np.ndarray:
+    """``gyy - gyu guu^-1 gyu^T`` through the Cholesky factor of ``guu`` (symmetrised)."""
+    lu = np.linalg.cholesky(guu)
+    w = sla.solve_triangular(lu, gyu.T, lower=True, check_finite=False)
     out = gyy - w.T @ w
     return 0.5 * (out + out.T)
+
+
+def schur_from_data(
+    basis: RowBasis, H: np.ndarray, weights: np.ndarray | None = None, chunk: int = 2048
+) -> np.ndarray:
+    """``L22 L22^T`` of one data set from its real-stacked data matrix ``X``: ``X X^T`` is
+    accumulated over chunks of lines (bounded memory), then the Schur complement is taken.
+
+    For a single identification this costs ``O(N (q (nu + ny))^2)`` whatever the basis,
+    while the per-line sums of :func:`gram_sums` pay off only when many replicates share them.
+    """
+    N, ny, nu = H.shape
+    q = basis.q
+    m = q * (nu + ny)
+    G = np.zeros((m, m))
+    for start in range(0, N, chunk):
+        sl = slice(start, min(N, start + chunk))
+        P = basis.values[:, sl]
+        if weights is not None:
+            P = P * np.sqrt(np.asarray(weights, float)[sl])[None, :]
+        U, Y = data_matrices(P, H[sl])
+        Z = np.vstack([U, Y])
+        G += (Z @ Z.conj().T).real
+    return _schur(G[: q * nu, : q * nu], G[q * nu :, : q * nu], G[q * nu :, q * nu :])
 
 
 # ---------------------------------------------------------------------------------------
@@ -390,7 +418,7 @@ def observability(
     if method not in ("auto", "gram", "qr"):
         raise ValueError(f"unknown method {method!r}")
     if method in ("auto", "gram"):
-        O, sv = observability_from_schur(schur_complement(gram_sums(basis, H, weights)), n)
+        O, sv = observability_from_schur(schur_from_data(basis, H, weights), n)
         if method == "gram" or gram_resolves(sv):
             return O, sv, "gram"
     O, sv = observability_from_l22(projected_output_qr(basis, H, weights), n)
@@ -441,8 +469,12 @@ def estimate_bd(
     """``B`` and ``D`` by linear least squares with ``A`` and ``C`` fixed.
 
     Minimises ``sum_k c_k || D + C (z_k I - A)^-1 B - H_k ||_F^2`` over real ``B`` and ``D``.
-    The regressor is the same for every input column, so all columns are solved at once;
-    the stacked real regressor (``2 N ny`` rows) is formed through ``eig(A)``.
+    The regressor is the same for every input column, so all columns are solved at once.
+    The normal equations are formed in modal coordinates (``A = V diag(lambda) V^-1``):
+    with ``g_ka = 1 / (z_k - lambda_a)`` and ``W = (C V)^H (C V)``,
+    ``sum_k Phi_k^H Phi_k = V^-H (W o sum_k c_k conj(g_k) g_k^T) V^-1``, which costs
+    ``O(N n^2)`` instead of the ``O(N ny n^2)`` of a stacked least-squares problem. When
+    ``V`` is ill-conditioned (a nearly defective ``A``) the stacked problem is solved instead.
 
     Parameters
     ----------
@@ -464,27 +496,56 @@ def estimate_bd(
     """
     N, ny, nu = H.shape
     n = A.shape[0]
+    c = np.ones(N) if weights is None else np.asarray(weights, dtype=float)
     CV, g, V = _modal_regressor(z, A, C)
-    # Phi_k = (C V) diag(g_k) V^-1  -> (N, ny, n)
+    if np.linalg.cond(V) > 1e8:
+        return _estimate_bd_stacked(z, H, A, C, with_d, c)
     Vinv = np.linalg.inv(V)
-    phi = np.einsum("ia,ka,aj->kij", CV, g, Vinv, optimize=True)
+    cg = c[:, None] * g
+    K = cg.conj().T @ g  # (n, n): sum_k c_k conj(g_ka) g_kb
+    W = CV.conj().T @ CV
+    Mbb = Vinv.conj().T @ (W * K) @ Vinv
+    Q = np.einsum("ia,kib->kab", CV.conj(), H, optimize=True)  # (N, n, nu)
+    rb = Vinv.conj().T @ np.einsum("ka,kab->ab", cg.conj(), Q, optimize=True)
+    if with_d:
+        Mbd = Vinv.conj().T @ (cg.sum(axis=0).conj()[:, None] * CV.conj().T)  # (n, ny)
+        M = np.block([[Mbb, Mbd], [Mbd.conj().T, c.sum() * np.eye(ny)]])
+        rhs = np.vstack([rb, np.einsum("k,kab->ab", c, H)])
+    else:
+        M, rhs = Mbb, rb
+    M, rhs = M.real, rhs.real
+    d = np.sqrt(np.abs(np.diag(M)))
+    d[d == 0] = 1.0
+    sol = sla.lstsq(M / np.outer(d, d), rhs / d[:, None], lapack_driver="gelsy",
+                    check_finite=False)[0] / d[:, None]
+    B = sol[:n]
+    D = sol[n:] if with_d else np.zeros((ny, nu))
+    return B, D
+
+
+def _estimate_bd_stacked(
+    z: np.ndarray, H: np.ndarray, A: np.ndarray, C: np.ndarray, with_d: bool, c: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`estimate_bd` by the stacked real least-squares problem (robust, slower)."""
+    N, ny, nu = H.shape
+    n = A.shape[0]
+    # Phi_k = C (z_k I - A)^-1, by solves (no eigenvectors)
+    eye = np.eye(n)
+    phi = np.stack([np.linalg.solve((zk * eye - A).T, C.T).T for zk in z])  # (N, ny, n)
     cols = [phi.reshape(N * ny, n)]
     if with_d:
         cols.append(np.tile(np.eye(ny), (N, 1)).astype(complex))
     reg = np.hstack(cols)
     rhs = H.reshape(N * ny, nu)
-    if weights is not None:
-        root = np.repeat(np.sqrt(np.asarray(weights, float)), ny)[:, None]
-        reg, rhs = reg * root, rhs * root
+    root = np.repeat(np.sqrt(c), ny)[:, None]
+    reg, rhs = reg * root, rhs * root
     reg_r = np.vstack([reg.real, reg.imag])
     rhs_r = np.vstack([rhs.real, rhs.imag])
-    # column scaling for conditioning
     norms = np.linalg.norm(reg_r, axis=0)
     norms[norms == 0] = 1.0
-    sol = np.linalg.lstsq(reg_r / norms, rhs_r, rcond=None)[0] / norms[:, None]
-    B = sol[:n]
-    D = sol[n:] if with_d else np.zeros((ny, nu))
-    return B, D
+    sol = sla.lstsq(reg_r / norms, rhs_r, lapack_driver="gelsy", check_finite=False)[0]
+    sol = sol / norms[:, None]
+    return sol[:n], (sol[n:] if with_d else np.zeros((ny, nu)))
 
 
 def frequency_response(

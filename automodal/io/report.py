@@ -3,8 +3,9 @@
 :func:`report_dict` turns a :class:`~automodal.pipeline.Result` and its input into the
 report's plain-JSON content; :func:`write_report` writes it (the suffix of the path chooses
 JSON or HDF5) atomically, so that a failed run leaves no report at all; :func:`read_report`
-reads either format back into the same dict; :func:`format_table` is the table the command
-line prints.
+reads either format back into the same dict, and :func:`read_report_arrays` the arrays an
+HDF5 report keeps for plotting (every bootstrap pole, the measured and synthesized FRF);
+:func:`format_table` is the table the command line prints.
 
 Every number in the dict is a plain Python ``int`` or ``float`` (never a numpy scalar) and
 is finite: a NaN or infinity becomes ``None`` (JSON ``null``) and adds a line to
@@ -19,6 +20,8 @@ import json
 import math
 import os
 import re
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -35,6 +38,7 @@ __all__ = [
     "FORMAT_VERSION",
     "format_table",
     "read_report",
+    "read_report_arrays",
     "report_dict",
     "save_report",
     "write_report",
@@ -45,6 +49,14 @@ FORMAT_NAME = "automodal-report"
 
 FORMAT_VERSION = 1
 """The report version this module writes, and the newest it reads."""
+
+MAX_FRF_LINES = 2000
+"""Most frequency lines of the FRFs kept in an HDF5 report (``/frf``); more are decimated."""
+
+FRFArrays = tuple[np.ndarray, np.ndarray, np.ndarray | None]
+"""``(frequency, measured, synthesized)``: FRFs of the analysed band for the report's plots.
+``frequency`` has shape ``(n,)`` in Hz, ``measured`` and ``synthesized`` (which may be
+``None``) shape ``(n, n_outputs, n_inputs)``."""
 
 _JSON_SUFFIXES = (".json",)
 _HDF5_SUFFIXES = (".h5", ".hdf5")
@@ -147,6 +159,10 @@ def _input_section(
         "input_names": [str(n) for n in data.input_names],
         "attributes": dict(data.attributes),
         "frequency_range_hz": [freq[0], freq[-1]] if freq.size else [],
+        "output_xyz": None if data.output_xyz is None else np.asarray(data.output_xyz, float),
+        "output_directions": (
+            None if data.output_directions is None else [str(d) for d in data.output_directions]
+        ),
     }
 
 
@@ -294,6 +310,7 @@ def write_report(
     result: Result,
     data: FRFData,
     input_path: str | os.PathLike[str] | None = None,
+    frf: FRFArrays | None = None,
 ) -> None:
     """Write the report of a run as JSON or HDF5, atomically.
 
@@ -305,6 +322,10 @@ def write_report(
         in the root attribute ``report_json``).
     result, data, input_path
         As for :func:`report_dict`.
+    frf : (frequency, measured, synthesized), optional
+        The analysed band's measured FRFs and those synthesized from the physical modes
+        (``synthesized`` may be ``None``), kept under ``/frf`` of an HDF5 report for the
+        plots (see :func:`save_report`); ignored for JSON.
 
     Raises
     ------
@@ -318,15 +339,19 @@ def write_report(
     In HDF5, ``/input``, ``/summary`` and ``/trashbox`` hold their fields as attributes
     (``None`` left out, ``input.attributes`` as JSON text), ``/modes`` one dataset per
     field with one row per mode (a ``null`` number is NaN there), ``/poles`` every
-    bootstrap pole, and the root attribute ``warnings`` the warnings. To write the same report to several files use :func:`report_dict` once and
+    bootstrap pole, ``/frf`` the FRFs when given, and the root attribute ``warnings`` the
+    warnings. To write the same report to several files use :func:`report_dict` once and
     :func:`save_report` for each.
     """
     _format_of(path)
-    save_report(path, report_dict(result, data, input_path), result.poles)
+    save_report(path, report_dict(result, data, input_path), result.poles, frf)
 
 
 def save_report(
-    path: str | os.PathLike[str], report: dict, poles: PoleTable | None = None
+    path: str | os.PathLike[str],
+    report: dict,
+    poles: PoleTable | None = None,
+    frf: FRFArrays | None = None,
 ) -> None:
     """Write a report dict made by :func:`report_dict`, as JSON or HDF5, atomically.
 
@@ -338,18 +363,27 @@ def save_report(
         The report content (must be finite: NaN is refused with ``ValueError``).
     poles : PoleTable, optional
         Every bootstrap pole, written under ``/poles`` of an HDF5 report (ignored for JSON).
+    frf : (frequency, measured, synthesized), optional
+        FRFs written under ``/frf`` of an HDF5 report (ignored for JSON): ``frequency``
+        (Hz, shape ``(n,)``), ``measured`` and ``synthesized`` (complex, shape
+        ``(n, n_outputs, n_inputs)``; ``synthesized`` may be ``None`` and is then left
+        out). Lines outside the report's ``input.band_hz`` are dropped, and more than
+        :data:`MAX_FRF_LINES` lines are decimated (every k-th line) to at most that many.
 
     Raises
     ------
     InputError
         For an unknown suffix, before anything is written.
+    ValueError
+        If the arrays of ``frf`` do not fit together (nothing is written).
     """
     kind = _format_of(path)
+    arrays = None if frf is None or kind == "json" else _frf_for_report(report, frf)
     with atomic_path(path) as tmp:
         if kind == "json":
             _write_json(tmp, report)
         else:
-            _write_hdf5(tmp, report, poles)
+            _write_hdf5(tmp, report, poles, arrays)
 
 
 def _format_of(path: str | os.PathLike[str]) -> str:
@@ -372,7 +406,41 @@ def _write_json(path: Path, report: dict) -> None:
         fh.write("\n")
 
 
-def _write_hdf5(path: Path, report: dict, poles: PoleTable | None) -> None:
+def _frf_for_report(report: dict, frf: FRFArrays) -> dict[str, np.ndarray]:
+    """The ``/frf`` datasets: checked, cut to the analysed band, decimated.
+
+    Raises
+    ------
+    ValueError
+        If the shapes of the arrays do not fit together.
+    """
+    frequency, measured, synthesized = frf
+    freq = np.asarray(frequency, dtype=float).ravel()
+    arrays = {"frequency": freq, "measured": np.asarray(measured, dtype=complex)}
+    if synthesized is not None:
+        arrays["synthesized"] = np.asarray(synthesized, dtype=complex)
+    for name in ("measured", "synthesized"):
+        if name in arrays and (arrays[name].ndim != 3 or arrays[name].shape[0] != freq.size):
+            raise ValueError(
+                f"frf: {name} has shape {arrays[name].shape}, expected ({freq.size}, ny, nu)"
+            )
+    if "synthesized" in arrays and arrays["synthesized"].shape != arrays["measured"].shape:
+        raise ValueError(
+            f"frf: synthesized has shape {arrays['synthesized'].shape}, measured"
+            f" {arrays['measured'].shape}"
+        )
+    keep = np.ones(freq.size, dtype=bool)
+    band = report.get("input", {}).get("band_hz") or []
+    if len(band) == 2 and None not in band:
+        keep = (freq >= band[0]) & (freq <= band[1])
+    lines = np.flatnonzero(keep)
+    step = max(1, math.ceil(lines.size / MAX_FRF_LINES))
+    return {name: a[lines[::step]] for name, a in arrays.items()}
+
+
+def _write_hdf5(
+    path: Path, report: dict, poles: PoleTable | None, frf: dict[str, np.ndarray] | None = None
+) -> None:
     """The report in the spec's HDF5 layout, plus its JSON text in ``report_json``."""
     text = json.dumps(report, ensure_ascii=False, allow_nan=False)
     strings = h5py.string_dtype()
@@ -388,6 +456,13 @@ def _write_hdf5(path: Path, report: dict, poles: PoleTable | None) -> None:
         _write_modes(f.create_group("modes"), report["modes"], int(report["input"]["n_outputs"]))
         if poles is not None:
             _write_poles(f.create_group("poles"), poles)
+        if frf is not None:
+            group = f.create_group("frf")
+            group.attrs["description"] = (
+                "the analysed band's FRFs, measured and synthesized from the physical modes"
+            )
+            for name, values in frf.items():
+                group.create_dataset(name, data=values)
 
 
 def _write_attributes(group: h5py.Group, fields: dict[str, Any]) -> None:
@@ -463,6 +538,57 @@ def read_report(path: str | os.PathLike[str]) -> dict:
         If the file is missing, unreadable, not JSON or HDF5, not an automodal report, or of
         a newer report version. The message names the file.
     """
+    with _reading(path) as p:
+        report = _read_hdf5(p) if _is_hdf5_report(p) else _read_json(p)
+        _check_header(report)
+    return report
+
+
+def read_report_arrays(path: str | os.PathLike[str]) -> dict[str, dict[str, np.ndarray]]:
+    """The arrays a report keeps for plotting: every bootstrap pole and the FRFs.
+
+    Parameters
+    ----------
+    path : str or path-like
+        A report written by :func:`write_report` or :func:`save_report`.
+
+    Returns
+    -------
+    dict
+        ``"poles"``: ``frequency_hz``, ``damping_ratio``, ``cluster`` (``-1`` for the
+        Trashbox) and ``replicate``, one entry per bootstrap pole; ``"frf"``:
+        ``frequency`` (Hz), ``measured`` and, when it was written, ``synthesized``
+        (complex, ``(n, n_outputs, n_inputs)``). Each is an empty dict when the report
+        does not hold it (a JSON report holds neither).
+
+    Raises
+    ------
+    InputError
+        If the file is missing or unreadable, or an HDF5 file that is not an automodal
+        report. The message names the file.
+    """
+    arrays: dict[str, dict[str, np.ndarray]] = {"poles": {}, "frf": {}}
+    with _reading(path) as p:
+        if not _is_hdf5_report(p):
+            return arrays
+        if not h5py.is_hdf5(p):
+            raise _Refused("not an HDF5 file (or truncated)")
+        with h5py.File(p, "r") as f:
+            fmt = f.attrs.get("format")
+            if (fmt.decode("utf-8", "replace") if isinstance(fmt, bytes) else fmt) != FORMAT_NAME:
+                raise _Refused(f"not an automodal report (format is not {FORMAT_NAME!r})")
+            for name in arrays:
+                group = f.get(name)
+                if isinstance(group, h5py.Group):
+                    arrays[name] = {
+                        key: ds[()] for key, ds in group.items() if isinstance(ds, h5py.Dataset)
+                    }
+    return arrays
+
+
+@contextmanager
+def _reading(path: str | os.PathLike[str]) -> Iterator[Path]:
+    """Check that ``path`` is a file and turn read problems into :class:`InputError`."""
     source = os.fspath(path)
     p = Path(path)
     try:
@@ -470,14 +596,12 @@ def read_report(path: str | os.PathLike[str]) -> dict:
             raise _Refused("no such report file")
         if not p.is_file():
             raise _Refused("not a file")
-        report = _read_hdf5(p) if _is_hdf5_report(p) else _read_json(p)
-        _check_header(report)
+        yield p
     except _Refused as exc:
         raise InputError(str(exc), source) from None
     except _READ_ERRORS as exc:
         msg = " ".join(str(exc).split()) or type(exc).__name__
         raise InputError(f"cannot read the report: {msg}", source) from exc
-    return report
 
 
 def _is_hdf5_report(path: Path) -> bool:

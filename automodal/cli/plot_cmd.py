@@ -1,0 +1,80 @@
+"""``automodal plot``: figures from a report, without identifying anything again."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from automodal.cli._common import debug_option, exit_on_error
+from automodal.errors import InputError
+
+FIGURE_SUFFIXES = (".png", ".svg", ".pdf")
+
+
+def default_output(report: str) -> Path:
+    """``<report stem>.png`` beside the report."""
+    return Path(report).with_suffix(".png")
+
+
+def _check_output(out: Path) -> None:
+    """Refuse an unknown figure format or a missing folder, before any work."""
+    if out.suffix.lower() not in FIGURE_SUFFIXES:
+        raise InputError(
+            f"unknown figure type {out.suffix or '(none)'!r}: use .png, .svg or .pdf", str(out)
+        )
+    if not out.parent.is_dir():
+        raise InputError("the figure's folder does not exist", str(out))
+
+
+def _missing(report_path: str, arrays: dict) -> str | None:
+    """One line naming what the report lacks for a full figure, or None."""
+    lacks = [what for key, what in (("poles", "bootstrap poles"), ("frf", "FRFs")) if not arrays[key]]
+    if not lacks:
+        return None
+    return (
+        f"automodal: note: {report_path} has no {' and no '.join(lacks)}:"
+        f" plotting only {'physicalness and mode shapes' if len(lacks) == 2 else 'the rest'}"
+    )
+
+
+@click.command()
+@click.argument("report_path", metavar="REPORT", type=click.Path())
+@click.option("-o", "--output", default=None, metavar="FIGURE",
+              help="Figure file, .png, .svg or .pdf (default: <REPORT stem>.png beside REPORT).")
+@click.option("--dpi", type=click.IntRange(20, 1200), default=150, show_default=True,
+              help="Resolution of a PNG.")
+@debug_option
+def plot(report_path: str, output: str | None, dpi: int, debug: bool) -> None:
+    """Draw the overview figure of REPORT (a .json or .h5 report of automodal identify).
+
+    The figure holds the bootstrap poles by cluster with the Trashbox over the FRF, the
+    measured FRFs against those synthesized from the physical modes, the physicalness of
+    every cluster, and the physical mode shapes (on the sensor geometry when it is known).
+    An HDF5 report holds everything; a JSON report has no poles nor FRFs, and only the
+    physicalness and the shapes are drawn. Prints the figure's path.
+
+    \b
+    Examples:
+      automodal plot report.h5
+      automodal plot report.h5 -o modes.svg
+    """
+    with exit_on_error(debug):
+        out = Path(output) if output else default_output(report_path)
+        _check_output(out)
+        from automodal.io.report import read_report, read_report_arrays
+
+        report = read_report(report_path)
+        arrays = read_report_arrays(report_path)
+        note = _missing(report_path, arrays)
+        if note:
+            click.echo(note, err=True)
+
+        import matplotlib
+
+        matplotlib.use("Agg")
+        from automodal.plots import overview, save_figure
+
+        fig = overview(report, arrays["poles"] or None, arrays["frf"] or None)
+        save_figure(fig, out, dpi=dpi)
+        click.echo(str(out))

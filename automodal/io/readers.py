@@ -1,0 +1,158 @@
+"""Reading any supported input file into an :class:`~automodal.frfdata.FRFData`.
+
+:func:`read_any` picks the reader by the file's suffix:
+
+========================  =====================================================
+suffix                    reader
+========================  =====================================================
+``.h5``, ``.hdf5``        :func:`automodal.io.frf_file.read_frf` (the FRF file)
+``.uff``, ``.unv``        :func:`automodal.io.uff.read_uff` (dataset 58)
+``.csv``, ``.txt``        :func:`automodal.io.tabular.read_csv`
+``.npz``                  :func:`automodal.io.tabular.read_npz`
+========================  =====================================================
+
+A file with another suffix is read as an FRF file when it carries the HDF5 signature and is
+refused otherwise. The readers are imported only when used, so that pyuff is loaded only for
+UFF files.
+
+The module also holds :func:`check_frf_arrays`, the checks that every reader of a foreign
+format applies to the arrays it has assembled (the same rules as ``spec/frf-file.md``).
+"""
+
+from __future__ import annotations
+
+import importlib
+import os
+from pathlib import Path
+
+import numpy as np
+
+from automodal.errors import InputError
+from automodal.frfdata import FRFData
+
+__all__ = ["READERS", "check_frf_arrays", "read_any"]
+
+READERS: dict[str, tuple[str, str]] = {
+    ".h5": ("automodal.io.frf_file", "read_frf"),
+    ".hdf5": ("automodal.io.frf_file", "read_frf"),
+    ".uff": ("automodal.io.uff", "read_uff"),
+    ".unv": ("automodal.io.uff", "read_uff"),
+    ".csv": ("automodal.io.tabular", "read_csv"),
+    ".txt": ("automodal.io.tabular", "read_csv"),
+    ".npz": ("automodal.io.tabular", "read_npz"),
+}
+"""Suffix (lower case) -> (module, function) of the reader used for it."""
+
+
+def read_any(path: str | os.PathLike[str]) -> FRFData:
+    """Read an FRF file, a UFF/UNV file, a CSV/text table or an NPZ archive.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The input file. The suffix (case-insensitive) chooses the reader, see
+        :data:`READERS`; with any other suffix the file is read as an automodal FRF file if
+        it starts with the HDF5 signature.
+
+    Returns
+    -------
+    FRFData
+        What the chosen reader returns; ``source`` is ``str(path)``.
+
+    Raises
+    ------
+    InputError
+        If the file is missing or a folder, if its type cannot be told from its suffix or
+        content, or if the chosen reader refuses it. The message is one line and names the
+        file.
+    """
+    source = str(path)
+    p = Path(path)
+    if not p.exists():
+        raise InputError("no such file", source)
+    if p.is_dir():
+        raise InputError("is a folder, not an input file", source)
+    target = READERS.get(p.suffix.lower())
+    if target is None:
+        if not _has_hdf5_signature(p):
+            known = ", ".join(sorted(READERS))
+            raise InputError(f"unknown input type (expected a suffix among {known}, "
+                             "or an HDF5 FRF file)", source)
+        target = READERS[".h5"]
+    module, name = target
+    reader = getattr(importlib.import_module(module), name)
+    return reader(path)
+
+
+def _has_hdf5_signature(path: Path) -> bool:
+    """Whether ``path`` is an HDF5 file, by its signature (False when unreadable)."""
+    import h5py
+
+    try:
+        return bool(h5py.is_hdf5(path))
+    except (OSError, ValueError):
+        return False
+
+
+def check_frf_arrays(
+    frequency: np.ndarray, frf: np.ndarray, source: str
+) -> tuple[np.ndarray, np.ndarray]:
+    """Check the arrays a reader has assembled against the rules of the FRF file.
+
+    Parameters
+    ----------
+    frequency : array_like, shape (n_freq,)
+        Frequency lines in Hz.
+    frf : array_like, shape (n_freq, n_outputs, n_inputs)
+        The FRFs; must already be complex.
+    source : str
+        The file they come from, for messages.
+
+    Returns
+    -------
+    frequency : ndarray of float64
+    frf : ndarray of complex128
+        The same arrays, converted.
+
+    Raises
+    ------
+    InputError
+        If ``frequency`` is not 1-D, has no line, is not finite, has a negative line or is
+        not strictly increasing; if ``frf`` is not complex, not 3-D with one line per
+        frequency, has a non-finite value, or has no imaginary part anywhere (real data
+        dressed as complex).
+    """
+    freq = np.asarray(frequency)
+    values = np.asarray(frf)
+    if freq.ndim != 1 or freq.size == 0:
+        raise InputError(f"the frequency axis must be 1-D and not empty, not of shape "
+                         f"{freq.shape}", source)
+    freq = freq.astype(np.float64)
+    if not np.all(np.isfinite(freq)):
+        n_bad = int(np.count_nonzero(~np.isfinite(freq)))
+        raise InputError(f"the frequency axis has {n_bad} non-finite value(s) (NaN or inf)",
+                         source)
+    if freq[0] < 0:
+        raise InputError(f"the frequency axis has negative values (first line {freq[0]:g} Hz)",
+                         source)
+    bad = np.flatnonzero(np.diff(freq) <= 0)
+    if bad.size:
+        k = int(bad[0]) + 1
+        raise InputError(f"the frequencies are not strictly increasing (line {k}: "
+                         f"{freq[k]:g} Hz after {freq[k - 1]:g} Hz)", source)
+    if values.dtype.kind != "c":
+        raise InputError(f"the FRFs are real (dtype {values.dtype}); real FRFs are refused, "
+                         "not given zero phase", source)
+    if values.ndim != 3 or values.shape[0] != freq.size:
+        raise InputError(f"the FRF array has shape {values.shape}; expected "
+                         f"({freq.size}, n_outputs, n_inputs)", source)
+    if values.size == 0:
+        raise InputError(f"the FRF array is empty (shape {values.shape})", source)
+    values = values.astype(np.complex128)
+    n_bad = int(np.count_nonzero(~np.isfinite(values)))
+    if n_bad:
+        raise InputError(f"the FRFs have {n_bad} non-finite value(s) (NaN or inf)", source)
+    if not np.any(values.imag):
+        raise InputError("every imaginary part of the FRFs is zero: real-valued data, not "
+                         "complex FRFs", source)
+    return freq, values

@@ -1,0 +1,688 @@
+"""Figures of an identification report: pole map, FRF fit, physicalness and mode shapes.
+
+Pure plotting: every function takes a report dict (what
+:func:`automodal.io.report.report_dict` or :func:`~automodal.io.report.read_report` gives)
+and, where it needs them, the arrays an HDF5 report keeps
+(:func:`~automodal.io.report.read_report_arrays`), and returns a
+:class:`matplotlib.figure.Figure`. Nothing here reads a file or identifies anything.
+
+Matplotlib is imported inside the functions only (so that importing :mod:`automodal`
+never loads it), and figures are made as :class:`~matplotlib.figure.Figure` objects, not
+through ``pyplot``: no window is opened, no global figure list grows, and saving uses
+Agg (or the SVG and PDF writers) whatever the backend.
+
+Every ``fig`` argument lets a function draw into a given figure or subfigure instead of
+a new one; :func:`overview` uses this to put the four panels into one figure.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure, SubFigure
+
+    from automodal.pipeline import PoleTable
+
+__all__ = [
+    "FIGURE_NAMES",
+    "frf_fit",
+    "mode_shapes",
+    "overview",
+    "physicalness_bars",
+    "pole_map",
+    "save_figure",
+    "save_figures",
+]
+
+FIGURE_NAMES = ("overview", "poles", "frf_fit", "physicalness", "mode_shapes")
+"""Stems of the files :func:`save_figures` writes (each only when its data exist)."""
+
+MAX_FRF_CHANNELS = 4
+"""Most FRF channels (output/input pairs) :func:`frf_fit` draws."""
+
+TRASHBOX_COLOR = "0.78"
+PHYSICAL_COLOR = "tab:blue"
+NON_PHYSICAL_COLOR = "0.55"
+_QUANTITY_FRF = {
+    "displacement": "receptance",
+    "velocity": "mobility",
+    "acceleration": "accelerance",
+}
+_DIRECTIONS = {"X": (1.0, 0.0, 0.0), "Y": (0.0, 1.0, 0.0), "Z": (0.0, 0.0, 1.0)}
+
+
+# ------------------------------------------------------------------------------ panels
+
+
+def pole_map(
+    report: Mapping[str, Any],
+    poles: PoleTable | Mapping[str, np.ndarray],
+    frf: Mapping[str, np.ndarray] | Sequence[np.ndarray] | None = None,
+    *,
+    fig: Figure | SubFigure | None = None,
+) -> Figure | SubFigure:
+    """Stabilization-diagram-style map of every bootstrap pole.
+
+    Parameters
+    ----------
+    report : dict
+        The report (its ``modes``, ``input.band_hz`` and ``summary`` are used).
+    poles : PoleTable or dict
+        Every bootstrap pole: ``frequency_hz``, ``cluster`` (``-1`` for the Trashbox) and
+        ``replicate`` (attributes or keys, as in ``read_report_arrays(path)["poles"]``).
+    frf : dict or sequence, optional
+        ``{"frequency": f, "measured": H, ...}`` or ``(f, H, ...)``: the summed FRF
+        magnitude is drawn behind the poles on a logarithmic second y axis.
+    fig : Figure or SubFigure, optional
+        Where to draw; default a new figure.
+
+    Returns
+    -------
+    Figure or SubFigure
+        One axes (x: frequency in Hz, y: bootstrap replicate), plus its twin when the
+        FRF is drawn. Trashbox poles are light grey (``gid="trashbox"``); each cluster has
+        its own colour (``gid="cluster-<id>"``), physical clusters large and labelled with
+        their frequencies.
+    """
+    fig = _canvas(fig, (11.0, 4.5))
+    ax = fig.add_subplot()
+    cols = _pole_columns(poles)
+    freq, cluster, replicate = cols["frequency_hz"], cols["cluster"], cols["replicate"]
+    by_cluster = _clusters(report)
+    trash = cluster < 0
+    ax.scatter(freq[trash], replicate[trash], s=4, c=TRASHBOX_COLOR, marker=".",
+               linewidths=0, label="Trashbox", gid="trashbox", zorder=1)
+    colors = _cluster_colors(by_cluster, np.unique(cluster[~trash]))
+    for c, color in colors.items():
+        sel = cluster == c
+        physical = by_cluster.get(c, {}).get("physical", False)
+        ax.scatter(freq[sel], replicate[sel], c=[color], gid=f"cluster-{c}",
+                   s=14 if physical else 5, marker="o" if physical else ".",
+                   alpha=0.9 if physical else 0.45, linewidths=0, zorder=3 if physical else 2)
+    n_rep = int(replicate.max()) + 1 if replicate.size else 1
+    ax.set_ylim(-0.5, 1.3 * n_rep)
+    ax.set_xlim(*_band(report, freq))
+    ax.set_xlabel("frequency (Hz)")
+    ax.set_ylabel("bootstrap replicate")
+    for mode in _physical_modes(report):
+        color = colors.get(mode.get("cluster"), PHYSICAL_COLOR)
+        ax.axvline(mode["frequency_hz"], color=color, lw=0.6, ls=":", zorder=0)
+        ax.text(mode["frequency_hz"], 0.985, f" {_hz(mode['frequency_hz'])}", color=color,
+                rotation=90, ha="center", va="top", fontsize=7,
+                transform=ax.get_xaxis_transform(), gid="mode-label")
+    handles = _pole_legend_handles()
+    parts = _frf_parts(frf)
+    if parts is not None:
+        handles.append(_draw_frf_sum(ax, parts[0], parts[1]))
+    ax.legend(handles=handles, loc="lower left", bbox_to_anchor=(0.0, 1.0), ncol=len(handles),
+              frameon=False, fontsize=8, borderaxespad=0.2)
+    summary = report.get("summary", {})
+    n_trash = int(np.count_nonzero(trash))
+    fig.suptitle(
+        f"Bootstrap poles: {summary.get('n_clusters', len(colors))} clusters,"
+        f" {summary.get('n_physical', 0)} physical, {n_trash} poles in the Trashbox",
+        fontsize=10,
+    )
+    return fig
+
+
+def frf_fit(
+    report: Mapping[str, Any],
+    frequency: np.ndarray,
+    frf_measured: np.ndarray,
+    frf_synth: np.ndarray | None,
+    *,
+    max_channels: int = MAX_FRF_CHANNELS,
+    fig: Figure | SubFigure | None = None,
+) -> Figure | SubFigure:
+    """Measured FRFs against those synthesized from the physical modes.
+
+    Parameters
+    ----------
+    report : dict
+        The report (channel names, quantity, band, physical modes).
+    frequency : ndarray, shape (n,)
+        Frequency lines in Hz.
+    frf_measured : ndarray, shape (n, n_outputs, n_inputs)
+        The measured FRFs.
+    frf_synth : ndarray of the same shape, or None
+        The FRFs synthesized from the physical modes; ``None`` draws the measured alone.
+    max_channels : int
+        Most output/input pairs drawn: those with the largest RMS magnitude.
+    fig : Figure or SubFigure, optional
+        Where to draw; default a new figure.
+
+    Returns
+    -------
+    Figure or SubFigure
+        Two axes sharing x: magnitude (logarithmic) above, phase in degrees below.
+        Measured lines are solid, synthesized ones dashed in the same colour.
+    """
+    fig = _canvas(fig, (10.0, 6.0))
+    ax_mag, ax_ph = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": [2, 1]})
+    f = np.asarray(frequency, dtype=float)
+    H = np.asarray(frf_measured, dtype=complex)
+    S = None if frf_synth is None else np.asarray(frf_synth, dtype=complex)
+    outputs, inputs = _channel_names(report, H.shape[1], H.shape[2])
+    for k, (i, j) in enumerate(_strongest_channels(H, max_channels)):
+        color = f"C{k}"
+        name = f"{outputs[i]}/{inputs[j]}" if H.shape[2] > 1 else outputs[i]
+        ax_mag.plot(f, np.abs(H[:, i, j]), color=color, lw=0.9, label=name, gid="measured")
+        ax_ph.plot(*_wrapped_phase(f, H[:, i, j]), color=color, lw=0.9, gid="measured")
+        if S is not None:
+            ax_mag.plot(f, np.abs(S[:, i, j]), color=color, lw=1.3, ls="--", gid="synthesized")
+            ax_ph.plot(*_wrapped_phase(f, S[:, i, j]), color=color, lw=1.3, ls="--",
+                       gid="synthesized")
+    ax_mag.set_yscale("log")
+    for mode in _physical_modes(report):
+        for ax in (ax_mag, ax_ph):
+            ax.axvline(mode["frequency_hz"], color="0.75", lw=0.6, ls=":", zorder=0)
+    kind = _QUANTITY_FRF.get(str(report.get("input", {}).get("quantity")), "FRF")
+    ax_mag.set_ylabel(f"|H| ({kind})")
+    ax_ph.set_ylabel("phase (°)")
+    ax_ph.set_ylim(-190, 190)
+    ax_ph.set_yticks([-180, -90, 0, 90, 180])
+    ax_ph.set_xlabel("frequency (Hz)")
+    if f.size:
+        ax_ph.set_xlim(f[0], f[-1])
+    handles, _ = ax_mag.get_legend_handles_labels()
+    handles += _style_handles(S is not None)
+    ax_mag.legend(handles=handles, loc="lower left", bbox_to_anchor=(0.0, 1.0),
+                  ncol=min(len(handles), 6), frameon=False, fontsize=8, borderaxespad=0.2)
+    what = "measured and synthesized from the physical modes" if S is not None else "measured"
+    fig.suptitle(f"FRF, {what}", fontsize=10)
+    return fig
+
+
+def physicalness_bars(
+    report: Mapping[str, Any], *, fig: Figure | SubFigure | None = None
+) -> Figure | SubFigure:
+    """One bar per cluster at its frequency, as high as its physicalness.
+
+    Parameters
+    ----------
+    report : dict
+        The report (its ``modes``, ``settings.min_physicalness`` and band).
+    fig : Figure or SubFigure, optional
+        Where to draw; default a new figure.
+
+    Returns
+    -------
+    Figure or SubFigure
+        One axes: bars coloured physical or not (``gid="physical"`` and
+        ``"not-physical"``), the decision threshold as a dashed line, and the 95 %
+        frequency interval of each cluster as a horizontal error bar at the top of its bar.
+    """
+    fig = _canvas(fig, (10.0, 3.5))
+    ax = fig.add_subplot()
+    modes = [m for m in report.get("modes", []) if _finite(m.get("frequency_hz"))]
+    threshold = float(report.get("settings", {}).get("min_physicalness", 0.5) or 0.5)
+    lo, hi = _band(report, np.array([m["frequency_hz"] for m in modes], dtype=float))
+    width = (hi - lo) / 250.0
+    for physical, color in ((True, PHYSICAL_COLOR), (False, NON_PHYSICAL_COLOR)):
+        group = [m for m in modes if bool(m.get("physical")) is physical]
+        f = np.array([m["frequency_hz"] for m in group], dtype=float)
+        p = np.array([m.get("physicalness") or 0.0 for m in group], dtype=float)
+        label = "physical" if physical else "not physical"
+        ax.bar(f, p, width=width, color=color, label=f"{label} ({len(group)})",
+               gid=label.replace(" ", "-"))
+        ax.errorbar(f, p, xerr=_ci_halfwidths(group, f), fmt="o", ms=2.5, color=color,
+                    elinewidth=1.0, capsize=2, gid=f"ci-{label.replace(' ', '-')}")
+    ax.axhline(threshold, color="tab:red", ls="--", lw=1.0, label=f"threshold {threshold:g}")
+    ax.set_xlim(lo, hi)
+    ax.set_ylim(0.0, 1.08)
+    ax.set_xlabel("frequency (Hz); horizontal bars: 95 % interval")
+    ax.set_ylabel("physicalness")
+    if not modes:
+        ax.text(0.5, 0.5, "no cluster survived", ha="center", va="center",
+                transform=ax.transAxes)
+    ax.legend(loc="lower left", bbox_to_anchor=(0.0, 1.0), ncol=3, frameon=False, fontsize=8,
+              borderaxespad=0.2)
+    fig.suptitle("Physicalness of every cluster", fontsize=10)
+    return fig
+
+
+def mode_shapes(
+    report: Mapping[str, Any],
+    xyz: np.ndarray | None = None,
+    *,
+    max_columns: int = 4,
+    fig: Figure | SubFigure | None = None,
+) -> Figure | SubFigure:
+    """The shape of each physical mode: bars by channel, or the displaced geometry.
+
+    Parameters
+    ----------
+    report : dict
+        The report (its physical ``modes``, ``input.output_names``, and
+        ``input.output_xyz``/``input.output_directions`` when ``xyz`` is not given).
+    xyz : ndarray, shape (n_outputs, 3), optional
+        Sensor coordinates. With coordinates each mode is a 3-D view of the sensors
+        displaced by the real part of the shape along their directions (``+Z`` when none
+        is known), nearest neighbours joined by lines; without, the real part and the
+        magnitude of the shape are bars by channel.
+    max_columns : int
+        Panels per row.
+    fig : Figure or SubFigure, optional
+        Where to draw; default a new figure.
+
+    Returns
+    -------
+    Figure or SubFigure
+        One axes per physical mode (a single axes with a note when there is none).
+    """
+    modes = _physical_modes(report)
+    inp = report.get("input", {})
+    if xyz is None and inp.get("output_xyz") is not None:
+        xyz = np.array(inp["output_xyz"], dtype=float)
+    geometry = xyz is not None and np.asarray(xyz).ndim == 2 and np.asarray(xyz).shape[1] == 3
+    n_cols = max(1, min(len(modes), max_columns))
+    n_rows = max(1, math.ceil(len(modes) / n_cols))
+    fig = _canvas(fig, (3.2 * n_cols, 2.8 * n_rows + 0.6))
+    if not modes:
+        ax = fig.add_subplot()
+        ax.set_axis_off()
+        ax.text(0.5, 0.5, "no physical mode", ha="center", va="center", transform=ax.transAxes)
+    for k, mode in enumerate(modes):
+        shape = _shape(mode)
+        if geometry:
+            ax = fig.add_subplot(n_rows, n_cols, k + 1, projection="3d")
+            _draw_geometry(ax, np.asarray(xyz, dtype=float), shape.real,
+                           _direction_vectors(inp.get("output_directions"), shape.size))
+        else:
+            ax = fig.add_subplot(n_rows, n_cols, k + 1)
+            _draw_shape_bars(ax, shape, _channel_names(report, shape.size, 0)[0], k == 0)
+        zeta = mode.get("damping_ratio")
+        damping = f", ζ {100 * zeta:.2f} %" if _finite(zeta) else ""
+        ax.set_title(f"mode {mode.get('id', k + 1)}: {_hz(mode['frequency_hz'])}{damping}",
+                     fontsize=8)
+    how = "real part on the sensor geometry" if geometry else "real part and magnitude by channel"
+    fig.suptitle(f"Shapes of the physical modes ({how})", fontsize=10)
+    return fig
+
+
+def overview(
+    report: Mapping[str, Any],
+    poles: PoleTable | Mapping[str, np.ndarray] | None = None,
+    frf: Mapping[str, np.ndarray] | Sequence[np.ndarray] | None = None,
+    xyz: np.ndarray | None = None,
+) -> Figure:
+    """The four panels in one figure, each where its data exist.
+
+    Parameters
+    ----------
+    report : dict
+        The report.
+    poles : PoleTable or dict, optional
+        Every bootstrap pole; without them (or with none) there is no pole map.
+    frf : dict or sequence, optional
+        ``{"frequency", "measured", "synthesized"}`` or ``(f, measured, synthesized)``;
+        without it there is no FRF panel (and no FRF behind the pole map).
+    xyz : ndarray, optional
+        Sensor coordinates for the mode shapes (default the report's).
+
+    Returns
+    -------
+    Figure
+        From top to bottom: pole map, FRF fit beside the physicalness bars, mode shapes.
+    """
+    from matplotlib.figure import Figure
+
+    has_poles = poles is not None and _pole_columns(poles)["frequency_hz"].size > 0
+    parts = _frf_parts(frf)
+    n_shapes = max(1, len(_physical_modes(report)))
+    shape_rows = math.ceil(n_shapes / min(n_shapes, 4))
+    heights = ([4.6] if has_poles else []) + [4.6] + [2.8 * shape_rows + 0.6]
+    fig = Figure(figsize=(15.0, sum(heights)), layout="constrained")
+    subs = list(np.ravel(fig.subfigures(len(heights), 1, height_ratios=heights)))
+    if has_poles:
+        pole_map(report, poles, parts, fig=subs.pop(0))
+    middle = subs.pop(0)
+    if parts is not None:
+        left, right = middle.subfigures(1, 2, width_ratios=[3, 2])
+        frf_fit(report, parts[0], parts[1], parts[2], fig=left)
+        physicalness_bars(report, fig=right)
+    else:
+        physicalness_bars(report, fig=middle)
+    mode_shapes(report, xyz, fig=subs.pop(0))
+    return fig
+
+
+# ------------------------------------------------------------------------------ saving
+
+
+def save_figure(fig: Figure, path: str | os.PathLike[str], dpi: int = 150) -> Path:
+    """Write a figure atomically; the suffix of ``path`` chooses the format.
+
+    Parameters
+    ----------
+    fig : Figure
+    path : str or path-like
+        ``*.png``, ``*.svg``, ``*.pdf`` (or any other format matplotlib writes).
+    dpi : int
+        Resolution of raster formats.
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
+    """
+    from automodal.io.atomic import atomic_path
+
+    target = Path(path)
+    with atomic_path(target) as tmp:
+        fig.savefig(tmp, dpi=dpi, format=target.suffix.lstrip(".").lower() or None)
+    return target
+
+
+def save_figures(
+    report: Mapping[str, Any],
+    arrays: Mapping[str, Any] | None,
+    folder: str | os.PathLike[str],
+    dpi: int = 150,
+) -> list[Path]:
+    """Write the standard set of figures of a report as PNG files into ``folder``.
+
+    Parameters
+    ----------
+    report : dict
+        The report.
+    arrays : dict, optional
+        ``{"poles": PoleTable or dict, "frf": dict or (f, measured, synthesized)}``, as
+        :func:`automodal.io.report.read_report_arrays` gives (either may be missing or
+        empty).
+    folder : str or path-like
+        Created when missing.
+    dpi : int
+        Resolution.
+
+    Returns
+    -------
+    list of pathlib.Path
+        The files written, in the order of :data:`FIGURE_NAMES`: ``overview.png``,
+        ``poles.png`` (with poles), ``frf_fit.png`` (with FRFs), ``physicalness.png`` and
+        ``mode_shapes.png``.
+    """
+    arrays = arrays or {}
+    poles = arrays.get("poles")
+    if poles is not None and _pole_columns(poles)["frequency_hz"].size == 0:
+        poles = None
+    parts = _frf_parts(arrays.get("frf"))
+    makers = {
+        "overview": lambda: overview(report, poles, parts),
+        "poles": None if poles is None else lambda: pole_map(report, poles, parts),
+        "frf_fit": None if parts is None else lambda: frf_fit(report, *parts),
+        "physicalness": lambda: physicalness_bars(report),
+        "mode_shapes": lambda: mode_shapes(report),
+    }
+    out = Path(folder)
+    out.mkdir(parents=True, exist_ok=True)
+    return [
+        save_figure(make(), out / f"{name}.png", dpi)
+        for name, make in makers.items()
+        if make is not None
+    ]
+
+
+# ------------------------------------------------------------------------------ drawing
+
+
+def _canvas(fig: Figure | SubFigure | None, size: tuple[float, float]) -> Figure | SubFigure:
+    """``fig``, or a new constrained-layout figure of ``size`` inches."""
+    if fig is not None:
+        return fig
+    from matplotlib.figure import Figure
+
+    return Figure(figsize=size, layout="constrained")
+
+
+def _draw_frf_sum(ax: Axes, frequency: np.ndarray, H: np.ndarray) -> Any:
+    """The FRF magnitude summed over channels on a log twin axis behind ``ax``'s artists."""
+    twin = ax.twinx()
+    total = np.sum(np.abs(np.asarray(H)), axis=(1, 2))
+    (line,) = twin.plot(frequency, total, color="0.25", lw=0.8, alpha=0.7, gid="frf-sum",
+                        label="Σ|H| over channels")
+    twin.set_yscale("log")
+    twin.set_ylabel("Σ|H| over channels")
+    ax.set_zorder(twin.get_zorder() + 1)
+    ax.patch.set_visible(False)
+    return line
+
+
+def _pole_legend_handles() -> list[Any]:
+    """Legend entries of the pole map."""
+    from matplotlib.lines import Line2D
+
+    def dot(color: str, size: float, label: str) -> Line2D:
+        return Line2D([], [], ls="", marker="o", ms=size, color=color, label=label)
+
+    return [
+        dot(PHYSICAL_COLOR, 5, "physical cluster (one colour each)"),
+        dot(NON_PHYSICAL_COLOR, 3, "other cluster"),
+        dot(TRASHBOX_COLOR, 3, "Trashbox"),
+    ]
+
+
+def _style_handles(with_synth: bool) -> list[Any]:
+    """Legend entries for the line styles of :func:`frf_fit`."""
+    from matplotlib.lines import Line2D
+
+    handles = [Line2D([], [], color="0.2", lw=0.9, label="measured")]
+    if with_synth:
+        handles.append(Line2D([], [], color="0.2", lw=1.3, ls="--", label="synthesized"))
+    return handles
+
+
+def _draw_shape_bars(ax: Axes, shape: np.ndarray, names: list[str], legend: bool) -> None:
+    """Real part and magnitude of a shape as bars by channel."""
+    x = np.arange(shape.size)
+    ax.bar(x - 0.2, shape.real, width=0.4, color=PHYSICAL_COLOR, label="real part", gid="real")
+    ax.bar(x + 0.2, np.abs(shape), width=0.4, color="none", edgecolor="0.3", lw=0.8,
+           label="magnitude", gid="magnitude")
+    ax.axhline(0.0, color="0.3", lw=0.6)
+    ax.set_ylim(-1.15, 1.15)
+    ax.set_xticks(x)
+    ax.set_xticklabels(names, rotation=90 if shape.size > 6 else 0, fontsize=7)
+    ax.tick_params(axis="y", labelsize=7)
+    if legend:
+        ax.legend(fontsize=6, loc="lower right", frameon=False)
+
+
+def _draw_geometry(ax: Any, xyz: np.ndarray, real: np.ndarray, directions: np.ndarray) -> None:
+    """Sensors displaced by the real part of a shape, in a 3-D axes."""
+    from matplotlib import colormaps
+
+    span = float(np.max(np.ptp(xyz, axis=0))) if xyz.size else 0.0
+    scale = 0.3 * (span if span > 0 else 1.0) / max(float(np.max(np.abs(real))), 1e-12)
+    moved = xyz + scale * real[:, None] * directions
+    for a, b in _neighbour_edges(xyz):
+        ax.plot(*xyz[[a, b]].T, color="0.8", lw=0.7, gid="undeformed")
+        ax.plot(*moved[[a, b]].T, color=PHYSICAL_COLOR, lw=1.2, gid="deformed")
+    for p, q in zip(xyz, moved):
+        ax.plot(*np.stack([p, q]).T, color="0.6", lw=0.5, ls=":")
+    ax.scatter(*xyz.T, s=6, color="0.6", depthshade=False)
+    ax.scatter(*moved.T, s=18, c=real, cmap=colormaps["coolwarm"], vmin=-1, vmax=1,
+               depthshade=False, gid="sensors")
+    extent = np.ptp(np.vstack([xyz, moved]), axis=0)
+    ax.set_box_aspect(np.maximum(extent, 0.25 * max(float(extent.max()), 1e-12)))
+    ax.view_init(elev=28, azim=-60)
+    ax.tick_params(labelsize=5, pad=0)
+    for axis in (ax.xaxis, ax.yaxis, ax.zaxis):
+        axis.set_ticklabels([])
+
+
+def _neighbour_edges(xyz: np.ndarray, max_points: int = 500) -> list[tuple[int, int]]:
+    """Pairs of sensors at the smallest distance between any two (a lattice's edges)."""
+    n = xyz.shape[0]
+    if n < 2 or n > max_points:
+        return []
+    d = np.linalg.norm(xyz[:, None, :] - xyz[None, :, :], axis=2)
+    upper = d[np.triu_indices(n, 1)]
+    positive = upper[upper > 0]
+    if positive.size == 0:
+        return []
+    a, b = np.nonzero(np.triu((d > 0) & (d <= 1.01 * positive.min()), 1))
+    return list(zip(a.tolist(), b.tolist()))
+
+
+# ------------------------------------------------------------------------------ data
+
+
+def _pole_columns(poles: PoleTable | Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """Frequency, cluster and replicate of every pole, from a PoleTable or a dict."""
+
+    def column(name: str, dtype: type) -> np.ndarray:
+        value = poles.get(name) if isinstance(poles, Mapping) else getattr(poles, name, None)
+        return np.zeros(0, dtype) if value is None else np.asarray(value, dtype=dtype).ravel()
+
+    cols = {
+        "frequency_hz": column("frequency_hz", float),
+        "cluster": column("cluster", int),
+        "replicate": column("replicate", int),
+    }
+    n = cols["frequency_hz"].size
+    if any(c.size != n for c in cols.values()):
+        raise ValueError("poles: frequency_hz, cluster and replicate differ in length")
+    return cols
+
+
+def _frf_parts(
+    frf: Mapping[str, np.ndarray] | Sequence[np.ndarray] | None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray | None] | None:
+    """``(frequency, measured, synthesized or None)`` from a dict or a sequence, or None."""
+    if frf is None:
+        return None
+    if isinstance(frf, Mapping):
+        freq, measured, synth = (frf.get(k) for k in ("frequency", "measured", "synthesized"))
+    else:
+        items = list(frf) + [None] * (3 - len(frf))
+        freq, measured, synth = items[:3]
+    if freq is None or measured is None or np.asarray(freq).size == 0:
+        return None
+    return np.asarray(freq, dtype=float), np.asarray(measured), synth
+
+
+def _clusters(report: Mapping[str, Any]) -> dict[int, dict[str, Any]]:
+    """Cluster id -> whether any of its modes is physical, and the lowest frequency."""
+    out: dict[int, dict[str, Any]] = {}
+    for mode in report.get("modes", []):
+        c = mode.get("cluster")
+        if c is None:
+            continue
+        entry = out.setdefault(int(c), {"physical": False, "frequency_hz": math.inf})
+        entry["physical"] |= bool(mode.get("physical"))
+        if _finite(mode.get("frequency_hz")):
+            entry["frequency_hz"] = min(entry["frequency_hz"], float(mode["frequency_hz"]))
+    return out
+
+
+def _cluster_colors(
+    by_cluster: Mapping[int, Mapping[str, Any]], present: np.ndarray
+) -> dict[int, Any]:
+    """A colour per cluster: tab10 in frequency order for physical clusters, greys else."""
+    from matplotlib import colormaps
+
+    strong = colormaps["tab10"].colors
+    muted = colormaps["tab20c"].colors[16:20]
+    order = sorted((int(c) for c in present),
+                   key=lambda c: by_cluster.get(c, {}).get("frequency_hz", math.inf))
+    colors: dict[int, Any] = {}
+    n_phys = n_other = 0
+    for c in order:
+        if by_cluster.get(c, {}).get("physical", False):
+            colors[c] = strong[n_phys % len(strong)]
+            n_phys += 1
+        else:
+            colors[c] = muted[n_other % len(muted)]
+            n_other += 1
+    return colors
+
+
+def _physical_modes(report: Mapping[str, Any]) -> list[Mapping[str, Any]]:
+    """The physical modes with a finite frequency, by frequency."""
+    modes = [m for m in report.get("modes", [])
+             if m.get("physical") and _finite(m.get("frequency_hz"))]
+    return sorted(modes, key=lambda m: m["frequency_hz"])
+
+
+def _shape(mode: Mapping[str, Any]) -> np.ndarray:
+    """A mode's shape as a complex array (``null`` entries as 0)."""
+    shape = mode.get("mode_shape") or {}
+    real = np.array([v if v is not None else 0.0 for v in shape.get("real", [])], dtype=float)
+    imag = np.array([v if v is not None else 0.0 for v in shape.get("imag", [])], dtype=float)
+    return real + 1j * imag
+
+
+def _direction_vectors(directions: Sequence[str] | None, n: int) -> np.ndarray:
+    """Unit vectors of directions such as ``"+X"`` or ``"-Z"``; unknown ones ``+Z``."""
+    out = np.tile(np.array(_DIRECTIONS["Z"]), (n, 1))
+    for i, d in enumerate(list(directions or [])[:n]):
+        text = str(d).strip().upper()
+        axis = _DIRECTIONS.get(text.lstrip("+-"))
+        if axis is not None:
+            out[i] = (-1.0 if text.startswith("-") else 1.0) * np.array(axis)
+    return out
+
+
+def _channel_names(report: Mapping[str, Any], ny: int, nu: int) -> tuple[list[str], list[str]]:
+    """Output and input names from the report, ``y1..``/``u1..`` where they are missing."""
+    inp = report.get("input", {})
+
+    def names(key: str, n: int, prefix: str) -> list[str]:
+        given = [str(s) for s in inp.get(key) or []]
+        return given[:n] if len(given) >= n else [f"{prefix}{i + 1}" for i in range(n)]
+
+    return names("output_names", ny, "y"), names("input_names", nu, "u")
+
+
+def _strongest_channels(H: np.ndarray, n: int) -> list[tuple[int, int]]:
+    """The ``n`` output/input pairs of largest RMS magnitude, in channel order."""
+    rms = np.sqrt(np.mean(np.abs(H) ** 2, axis=0)) if H.shape[0] else np.zeros(H.shape[1:])
+    rows, cols = np.unravel_index(np.argsort(rms, axis=None)[::-1][: max(1, n)], rms.shape)
+    return sorted(zip(rows.tolist(), cols.tolist()))
+
+
+def _wrapped_phase(f: np.ndarray, h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Phase in degrees in (-180, 180], the line broken (NaN) where it wraps."""
+    deg = np.degrees(np.angle(h))
+    jumps = np.flatnonzero(np.abs(np.diff(deg)) > 180.0) + 1
+    return np.insert(f, jumps, np.nan), np.insert(deg, jumps, np.nan)
+
+
+def _ci_halfwidths(modes: list[Mapping[str, Any]], f: np.ndarray) -> np.ndarray:
+    """``(2, n)`` distances from each frequency to the ends of its 95 % interval."""
+    out = np.zeros((2, len(modes)))
+    for k, mode in enumerate(modes):
+        ci = mode.get("frequency_ci95_hz") or [None, None]
+        if len(ci) == 2 and _finite(ci[0]) and _finite(ci[1]):
+            out[:, k] = max(0.0, f[k] - ci[0]), max(0.0, ci[1] - f[k])
+    return out
+
+
+def _band(report: Mapping[str, Any], freq: np.ndarray) -> tuple[float, float]:
+    """The analysed band from the report, else the span of ``freq``, else (0, 1)."""
+    band = report.get("input", {}).get("band_hz") or []
+    if len(band) == 2 and _finite(band[0]) and _finite(band[1]) and band[1] > band[0]:
+        return float(band[0]), float(band[1])
+    finite = freq[np.isfinite(freq)] if freq.size else freq
+    if finite.size and finite.max() > finite.min():
+        return float(finite.min()), float(finite.max())
+    return 0.0, 1.0
+
+
+def _hz(f: float) -> str:
+    """A frequency with four significant digits, e.g. ``9.597 Hz``."""
+    return f"{f:.4g} Hz"
+
+
+def _finite(x: Any) -> bool:
+    """Whether ``x`` is a finite real number (not a bool, not None)."""
+    return isinstance(x, (int, float, np.number)) and not isinstance(x, bool) and math.isfinite(x)
