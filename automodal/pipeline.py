@@ -18,7 +18,7 @@ import numpy as np
 
 from automodal import __version__
 from automodal.core import bootstrap, clustering, order, physicalness, subspace
-from automodal.core.bilinear import default_scale, to_unit_circle
+from automodal.core.bilinear import default_scale, poles_d2c, to_unit_circle
 from automodal.core.correlation import moc_vectors
 from automodal.core.modal import ModeSet, modes_of_discrete, mpc, normalise_shapes, unit_max_shapes
 from automodal.errors import InputError
@@ -31,6 +31,10 @@ limited so that a replicate still has enough (``2 * 0.6 N nu >= q (nu + ny)``)."
 
 MAX_SCAN_ORDER = 240
 """Highest order of the automatic misfit scan (``--order`` can set a lower limit)."""
+
+MAX_REFERENCE_ORDER = 320
+"""Highest automatic reference order: each replicate costs ``O(n^3)``, and at 320 states 100
+replicates take several seconds on two cores. ``--order`` can raise it."""
 
 
 @dataclass
@@ -125,6 +129,12 @@ class Result:
     runtime_s: float
     automodal_version: str = __version__
     reference_model: subspace.StateSpaceModel | None = field(default=None, repr=False)
+    reciprocity: bool = False
+    shape_channels: list[str] = field(default_factory=list)
+    n_lines: int = 0
+    frf_fit: tuple[np.ndarray, np.ndarray, np.ndarray] | None = field(default=None, repr=False)
+    """``(frequency_hz, measured, synthesized)`` over the analysed band, in the input's
+    orientation (lines x outputs x inputs); synthesized from the physical modes."""
 
     @property
     def physical_modes(self) -> list[IdentifiedMode]:
@@ -205,11 +215,13 @@ def scan(
     at the end of a stage, up to ``n_max``. Small systems pay only for a small projection;
     systems with many overlapping modes (80 modes, 22 visible peaks) still reach their order.
     """
-    ny = H.shape[1]
+    N, ny, nu = H.shape
+    while n_max > 4 and subspace.scan_block_rows(n_max, ny) * (nu + ny) > 2 * N * nu:
+        n_max -= 2  # the scan's larger block rows must fit the (full) data too
     stage = min(n_max, max(2 * n_peaks + 40, 60))
     while True:
         planned = scan_orders(max(4, stage))
-        basis = subspace.row_basis(z, subspace.block_rows(int(planned[-1]), ny))
+        basis = subspace.row_basis(z, subspace.scan_block_rows(int(planned[-1]), ny))
         orders, misfit = order.misfit_scan(
             z, H, planned, basis, weights=weights, stop_after=2 * n_peaks + 40
         )
@@ -353,6 +365,7 @@ def identify(
     s = settings or Settings()
     warnings: list[str] = []
     freq, H, band = select_band(data, s.band_hz, warnings)
+    H, reciprocal = apply_reciprocity(H, warnings)
     N, ny, nu = H.shape
     omega = 2.0 * np.pi * freq
     T = default_scale(omega[0], omega[-1])
@@ -380,7 +393,8 @@ def identify(
         )
     orders, misfit = scan(z, Hs, lw, min(n_limit, MAX_SCAN_ORDER), count_peaks(Hs))
     n0 = order.order_at_floor(orders, misfit)
-    n_hi = order.excessive_order(n0, n_limit)
+    cap = n_limit if s.max_order is not None else min(n_limit, MAX_REFERENCE_ORDER)
+    n_hi = order.excessive_order(n0, cap)
 
     # -- reference model ------------------------------------------------------------
     q = subspace.block_rows(n_hi, ny)
@@ -428,6 +442,12 @@ def identify(
     labels, _ = clustering.trim(labels, o, poles, replicate, refsub.dims)
 
     modes = _summarise(labels, rho, poles, shapes, replicate, refsub, ref, scales, s, contribution)
+    physical_ref = sorted({int(i) for m in modes if m.physical for i in refsub.groups[m.cluster]})
+    H_syn = synthesize(A, Bd, Cs, Ds, z, np.array(physical_ref, dtype=int)) * scales[None, :, None]
+    if reciprocal:
+        H_syn, H_meas = H_syn.transpose(0, 2, 1), H.transpose(0, 2, 1)
+    else:
+        H_meas = H
     wn = np.abs(poles)
     table = PoleTable(
         frequency_hz=wn / (2 * np.pi),
@@ -456,6 +476,10 @@ def identify(
         orders=orders_info,
         runtime_s=time.perf_counter() - t0,
         reference_model=ref_model,
+        reciprocity=reciprocal,
+        frf_fit=(freq, np.ascontiguousarray(H_meas), np.ascontiguousarray(H_syn)),
+        shape_channels=list(data.input_names if reciprocal else data.output_names),
+        n_lines=int(N),
     )
 
 
@@ -480,6 +504,56 @@ def modal_contribution(
     term = np.linalg.norm(resid, axis=(1, 2)) / np.maximum(np.abs(zc - mu), 1e-300)
     total = np.linalg.norm(subspace.frequency_response(A, B, C, D, zc), axis=(1, 2))
     return term / np.maximum(total, 1e-300)
+
+
+def synthesize(
+    A: np.ndarray,
+    B: np.ndarray,
+    C: np.ndarray,
+    D: np.ndarray,
+    z: np.ndarray,
+    keep: np.ndarray,
+) -> np.ndarray:
+    """FRF of a discrete-time model keeping only some oscillatory modes (and ``D``).
+
+    ``keep`` indexes the model's modes with ``Im lambda > 0`` sorted by frequency (as in
+    :func:`automodal.core.modal.modes_of_discrete`); each kept mode contributes its term and
+    its conjugate's, so the result is the FRF of the physical modes alone.
+    """
+    mu, V = np.linalg.eig(A)
+    lam = poles_d2c(mu, 1.0)  # the order by |lambda| does not depend on T
+    pos = np.flatnonzero(lam.imag > 0)
+    pos = pos[np.argsort(np.abs(lam[pos]))]
+    H = np.broadcast_to(D, (z.size,) + D.shape).astype(complex)
+    if keep.size == 0:
+        return H
+    sel = pos[keep]
+    L = np.linalg.solve(V, B)[sel]
+    CV = (C @ V)[:, sel]
+
+    def terms(points: np.ndarray) -> np.ndarray:
+        g = 1.0 / (points[:, None] - mu[None, sel])
+        return np.einsum("ia,ka,aj->kij", CV, g, L, optimize=True)
+
+    # each mode with its conjugate: R / (z - mu) + conj(R) / (z - conj mu)
+    return H + terms(z) + np.conj(terms(z.conj()))
+
+
+def apply_reciprocity(H: np.ndarray, warnings: list[str]) -> tuple[np.ndarray, bool]:
+    """Swap inputs and outputs (``H^T``) when there are more inputs than outputs.
+
+    A roving-hammer test (one sensor, many hit points) is, by Maxwell-Betti reciprocity, the
+    same as one force and many sensors. Identification is much cheaper and better posed
+    with many outputs (the block rows scale with ``n / ny``), and the mode shapes then live
+    on the hit points, which is what such a test measures.
+    """
+    if H.shape[2] <= H.shape[1]:
+        return H, False
+    warnings.append(
+        f"reciprocity assumed: the {H.shape[2]} inputs were treated as outputs and the"
+        f" {H.shape[1]} output(s) as input(s); mode shapes are given over the inputs"
+    )
+    return np.ascontiguousarray(H.transpose(0, 2, 1)), True
 
 
 def _lines_needed(n: int, ny: int, nu: int) -> int:

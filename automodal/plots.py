@@ -48,6 +48,12 @@ FIGURE_NAMES = ("overview", "poles", "frf_fit", "physicalness", "mode_shapes")
 MAX_FRF_CHANNELS = 4
 """Most FRF channels (output/input pairs) :func:`frf_fit` draws."""
 
+OVERVIEW_SHAPE_COLUMNS = 6
+"""Mode-shape panels per row in :func:`overview`."""
+
+POLE_MAP_HEADROOM = 1.3
+"""Height of the pole map over the number of replicates: the room above holds the labels."""
+
 TRASHBOX_COLOR = "0.78"
 PHYSICAL_COLOR = "tab:blue"
 NON_PHYSICAL_COLOR = "0.55"
@@ -104,20 +110,24 @@ def pole_map(
     for c, color in colors.items():
         sel = cluster == c
         physical = by_cluster.get(c, {}).get("physical", False)
-        ax.scatter(freq[sel], replicate[sel], c=[color], gid=f"cluster-{c}",
-                   s=14 if physical else 5, marker="o" if physical else ".",
-                   alpha=0.9 if physical else 0.45, linewidths=0, zorder=3 if physical else 2)
+        style = (
+            {"s": 14, "marker": "o", "linewidths": 0, "zorder": 3}
+            if physical
+            else {"s": 9, "marker": "x", "linewidths": 0.7, "alpha": 0.8, "zorder": 2}
+        )
+        ax.scatter(freq[sel], replicate[sel], c=[color], gid=f"cluster-{c}", **style)
     n_rep = int(replicate.max()) + 1 if replicate.size else 1
-    ax.set_ylim(-0.5, 1.3 * n_rep)
+    ax.set_ylim(-0.5, POLE_MAP_HEADROOM * n_rep)
     ax.set_xlim(*_band(report, freq))
     ax.set_xlabel("frequency (Hz)")
     ax.set_ylabel("bootstrap replicate")
     for mode in _physical_modes(report):
         color = colors.get(mode.get("cluster"), PHYSICAL_COLOR)
         ax.axvline(mode["frequency_hz"], color=color, lw=0.6, ls=":", zorder=0)
-        ax.text(mode["frequency_hz"], 0.985, f" {_hz(mode['frequency_hz'])}", color=color,
-                rotation=90, ha="center", va="top", fontsize=7,
-                transform=ax.get_xaxis_transform(), gid="mode-label")
+        ax.text(mode["frequency_hz"], 0.985, _hz(mode["frequency_hz"]), color=color,
+                rotation=90, ha="center", va="top", fontsize=7, gid="mode-label",
+                transform=ax.get_xaxis_transform(),
+                bbox={"boxstyle": "square,pad=0.1", "fc": "white", "ec": "none", "alpha": 0.8})
     handles = _pole_legend_handles()
     parts = _frf_parts(frf)
     if parts is not None:
@@ -265,7 +275,7 @@ def mode_shapes(
         The report (its physical ``modes``, ``input.output_names``, and
         ``input.output_xyz``/``input.output_directions`` when ``xyz`` is not given).
     xyz : ndarray, shape (n_outputs, 3), optional
-        Sensor coordinates. With coordinates each mode is a 3-D view of the sensors
+        Sensor coordinates (another shape raises ``ValueError``). With coordinates each mode is a 3-D view of the sensors
         displaced by the real part of the shape along their directions (``+Z`` when none
         is known), nearest neighbours joined by lines; without, the real part and the
         magnitude of the shape are bars by channel.
@@ -283,7 +293,12 @@ def mode_shapes(
     inp = report.get("input", {})
     if xyz is None and inp.get("output_xyz") is not None:
         xyz = np.array(inp["output_xyz"], dtype=float)
-    geometry = xyz is not None and np.asarray(xyz).ndim == 2 and np.asarray(xyz).shape[1] == 3
+    geometry = xyz is not None
+    if geometry and modes:
+        xyz = np.asarray(xyz, dtype=float)
+        n_out = _shape(modes[0]).size
+        if xyz.shape != (n_out, 3):
+            raise ValueError(f"xyz has shape {xyz.shape}, the shapes need ({n_out}, 3)")
     n_cols = max(1, min(len(modes), max_columns))
     n_rows = max(1, math.ceil(len(modes) / n_cols))
     fig = _canvas(fig, (3.2 * n_cols, 2.8 * n_rows + 0.6))
@@ -295,7 +310,7 @@ def mode_shapes(
         shape = _shape(mode)
         if geometry:
             ax = fig.add_subplot(n_rows, n_cols, k + 1, projection="3d")
-            _draw_geometry(ax, np.asarray(xyz, dtype=float), shape.real,
+            _draw_geometry(ax, xyz, shape.real,
                            _direction_vectors(inp.get("output_directions"), shape.size))
         else:
             ax = fig.add_subplot(n_rows, n_cols, k + 1)
@@ -339,8 +354,8 @@ def overview(
     has_poles = poles is not None and _pole_columns(poles)["frequency_hz"].size > 0
     parts = _frf_parts(frf)
     n_shapes = max(1, len(_physical_modes(report)))
-    shape_rows = math.ceil(n_shapes / min(n_shapes, 4))
-    heights = ([4.6] if has_poles else []) + [4.6] + [2.8 * shape_rows + 0.6]
+    columns = min(n_shapes, OVERVIEW_SHAPE_COLUMNS)
+    heights = ([4.6] if has_poles else []) + [4.6] + [2.5 * math.ceil(n_shapes / columns) + 0.6]
     fig = Figure(figsize=(15.0, sum(heights)), layout="constrained")
     subs = list(np.ravel(fig.subfigures(len(heights), 1, height_ratios=heights)))
     if has_poles:
@@ -352,7 +367,7 @@ def overview(
         physicalness_bars(report, fig=right)
     else:
         physicalness_bars(report, fig=middle)
-    mode_shapes(report, xyz, fig=subs.pop(0))
+    mode_shapes(report, xyz, max_columns=columns, fig=subs.pop(0))
     return fig
 
 
@@ -451,6 +466,11 @@ def _draw_frf_sum(ax: Axes, frequency: np.ndarray, H: np.ndarray) -> Any:
     (line,) = twin.plot(frequency, total, color="0.25", lw=0.8, alpha=0.7, gid="frf-sum",
                         label="Σ|H| over channels")
     twin.set_yscale("log")
+    positive = total[np.isfinite(total) & (total > 0)]
+    if positive.size and positive.max() > positive.min():
+        lo, hi = np.log10(positive.min()), np.log10(positive.max())
+        margin = 0.03 * (hi - lo)
+        twin.set_ylim(10 ** (lo - margin), 10 ** (lo + POLE_MAP_HEADROOM * (hi - lo + margin)))
     twin.set_ylabel("Σ|H| over channels")
     ax.set_zorder(twin.get_zorder() + 1)
     ax.patch.set_visible(False)
@@ -461,13 +481,13 @@ def _pole_legend_handles() -> list[Any]:
     """Legend entries of the pole map."""
     from matplotlib.lines import Line2D
 
-    def dot(color: str, size: float, label: str) -> Line2D:
-        return Line2D([], [], ls="", marker="o", ms=size, color=color, label=label)
+    def dot(color: str, size: float, marker: str, label: str) -> Line2D:
+        return Line2D([], [], ls="", marker=marker, ms=size, color=color, label=label)
 
     return [
-        dot(PHYSICAL_COLOR, 5, "physical cluster (one colour each)"),
-        dot(NON_PHYSICAL_COLOR, 3, "other cluster"),
-        dot(TRASHBOX_COLOR, 3, "Trashbox"),
+        dot(PHYSICAL_COLOR, 5, "o", "physical cluster"),
+        dot(NON_PHYSICAL_COLOR, 4, "x", "other cluster"),
+        dot(TRASHBOX_COLOR, 4, ".", "Trashbox"),
     ]
 
 
@@ -497,26 +517,36 @@ def _draw_shape_bars(ax: Axes, shape: np.ndarray, names: list[str], legend: bool
 
 
 def _draw_geometry(ax: Any, xyz: np.ndarray, real: np.ndarray, directions: np.ndarray) -> None:
-    """Sensors displaced by the real part of a shape, in a 3-D axes."""
+    """Sensors displaced by the real part of a shape, in a 3-D axes without panes.
+
+    Grey: the sensors at rest and the lines between nearest neighbours; stems from rest to
+    the displaced sensor, coloured by the sign and size of the displacement (red out,
+    blue in); thin dark lines join the displaced sensors.
+    """
     from matplotlib import colormaps
 
     span = float(np.max(np.ptp(xyz, axis=0))) if xyz.size else 0.0
     scale = 0.3 * (span if span > 0 else 1.0) / max(float(np.max(np.abs(real))), 1e-12)
     moved = xyz + scale * real[:, None] * directions
+    cmap = colormaps["coolwarm"]
     for a, b in _neighbour_edges(xyz):
-        ax.plot(*xyz[[a, b]].T, color="0.8", lw=0.7, gid="undeformed")
-        ax.plot(*moved[[a, b]].T, color=PHYSICAL_COLOR, lw=1.2, gid="deformed")
-    for p, q in zip(xyz, moved):
-        ax.plot(*np.stack([p, q]).T, color="0.6", lw=0.5, ls=":")
-    ax.scatter(*xyz.T, s=6, color="0.6", depthshade=False)
-    ax.scatter(*moved.T, s=18, c=real, cmap=colormaps["coolwarm"], vmin=-1, vmax=1,
-               depthshade=False, gid="sensors")
-    extent = np.ptp(np.vstack([xyz, moved]), axis=0)
-    ax.set_box_aspect(np.maximum(extent, 0.25 * max(float(extent.max()), 1e-12)))
-    ax.view_init(elev=28, azim=-60)
-    ax.tick_params(labelsize=5, pad=0)
-    for axis in (ax.xaxis, ax.yaxis, ax.zaxis):
-        axis.set_ticklabels([])
+        ax.plot(*xyz[[a, b]].T, color="0.65", lw=0.8, gid="undeformed")
+        ax.plot(*moved[[a, b]].T, color="0.2", lw=0.8, alpha=0.7, gid="deformed")
+    for p, q, r in zip(xyz, moved, real):
+        ax.plot(*np.stack([p, q]).T, color=cmap(0.5 + 0.5 * float(np.clip(r, -1, 1))), lw=1.4)
+    ax.scatter(*xyz.T, s=5, color="0.55", depthshade=False)
+    ax.scatter(*moved.T, s=22, c=real, cmap=cmap, vmin=-1, vmax=1, edgecolors="0.2",
+               linewidths=0.4, depthshade=False, gid="sensors")
+    lo = np.minimum(xyz.min(axis=0), moved.min(axis=0))
+    hi = np.maximum(xyz.max(axis=0), moved.max(axis=0))
+    pad = 0.05 * max(float(np.max(hi - lo)), 1e-12)
+    ax.set_xlim(lo[0] - pad, hi[0] + pad)
+    ax.set_ylim(lo[1] - pad, hi[1] + pad)
+    ax.set_zlim(lo[2] - pad, hi[2] + pad)
+    ax.set_box_aspect(np.maximum(hi - lo + 2 * pad, 0.3 * float(np.max(hi - lo + 2 * pad))))
+    ax.set_proj_type("ortho")
+    ax.view_init(elev=25, azim=-60)
+    ax.set_axis_off()
 
 
 def _neighbour_edges(xyz: np.ndarray, max_points: int = 500) -> list[tuple[int, int]]:
@@ -587,11 +617,11 @@ def _clusters(report: Mapping[str, Any]) -> dict[int, dict[str, Any]]:
 def _cluster_colors(
     by_cluster: Mapping[int, Mapping[str, Any]], present: np.ndarray
 ) -> dict[int, Any]:
-    """A colour per cluster: tab10 in frequency order for physical clusters, greys else."""
+    """A colour per cluster in frequency order: tab10 for physical clusters, light tab20 else."""
     from matplotlib import colormaps
 
     strong = colormaps["tab10"].colors
-    muted = colormaps["tab20c"].colors[16:20]
+    muted = colormaps["tab20"].colors[1::2]
     order = sorted((int(c) for c in present),
                    key=lambda c: by_cluster.get(c, {}).get("frequency_hz", math.inf))
     colors: dict[int, Any] = {}

@@ -119,3 +119,19 @@ def test_cli_too_few_lines_for_the_asked_order(tmp_path):
     assert p.returncode == 2
     assert "needs at least" in p.stderr
     assert len(p.stderr.strip().splitlines()) == 1
+
+
+def test_roving_hammer_uses_reciprocity():
+    from automodal.core import simulate as sim
+
+    system = sim.damp(sim.chain(8), zeta=0.01)
+    data, modes = sim.simulate_test(system, [7], range(8), sim.frequency_lines(40, 1500),
+                                    "acceleration", noise=0.01, seed=1)
+    result = identify(data, Settings(seed=0, n_bootstrap=30, jobs=1))
+    assert result.reciprocity
+    assert any("reciprocity" in w for w in result.warnings)
+    found = np.array([m.frequency_hz for m in result.physical_modes])
+    assert found.size == 8
+    assert np.max(np.abs(found - modes.frequency_hz) / modes.frequency_hz) < 1e-3
+    assert all(m.mode_shape.size == 8 for m in result.modes)
+    assert result.shape_channels == data.input_names

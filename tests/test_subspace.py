@@ -178,3 +178,15 @@ def test_mpc_of_real_and_complex_shapes():
     # rotation invariant
     v = np.array([1.0, 0.3 + 0.2j, -0.5])
     assert mpc(v)[0] == pytest.approx(mpc(v * np.exp(0.7j))[0])
+
+
+def test_bd_normal_equations_match_the_stacked_problem():
+    system = _system("chain8_nonprop")
+    data, _, z, T = _data(system, [0, 3, 7], [2, 7], "velocity", noise=0.01, seed=4)
+    model = subspace.identify(z, data.frf, 20, T, estimate_bd_=False)
+    w = np.random.default_rng(2).uniform(0.5, 2.0, z.size)
+    B1, D1 = subspace.estimate_bd(z, data.frf, model.Ad, model.Cd, weights=w)
+    B2, D2 = subspace._estimate_bd_stacked(z, data.frf, model.Ad, model.Cd, True, w)
+    H1 = subspace.frequency_response(model.Ad, B1, model.Cd, D1, z)
+    H2 = subspace.frequency_response(model.Ad, B2, model.Cd, D2, z)
+    assert np.linalg.norm(H1 - H2) / np.linalg.norm(H2) < 1e-6

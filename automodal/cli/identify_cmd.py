@@ -25,13 +25,13 @@ def _check_outputs(outputs: tuple[str, ...]) -> None:
 
 
 def read_input(path: str):
-    """Read any supported input file into an :class:`FRFData`."""
+    """Read any supported input file into an :class:`FRFData` (see :func:`read_any`)."""
     p = Path(path)
     if p.is_dir():
         raise InputError("is a folder; batch runs over folders are not supported yet", path)
-    from automodal.io.frf_file import read_frf
+    from automodal.io.readers import read_any
 
-    return read_frf(path)
+    return read_any(path)
 
 
 @click.command()
@@ -49,6 +49,8 @@ def read_input(path: str):
               help="Largest model order (states) considered (default: automatic).")
 @click.option("--jobs", type=int, default=None,
               help="Processes for the bootstrap (default: all cores); never changes the result.")
+@click.option("--plot", "plot_dir", type=click.Path(file_okay=False), default=None, metavar="DIR",
+              help="Also write the standard figures (PNG) into DIR.")
 @debug_option
 def identify(
     input_path: str,
@@ -60,6 +62,7 @@ def identify(
     band: tuple[float, float] | None,
     max_order: int | None,
     jobs: int | None,
+    plot_dir: str | None,
     debug: bool,
 ) -> None:
     """Identify the modes in INPUT (an automodal FRF file) with no human choice.
@@ -70,12 +73,14 @@ def identify(
     Examples:
       automodal identify sample_data/chain6.h5
       automodal identify test.h5 -o report.json -o report.h5 --seed 1 --quiet
+      automodal identify test.h5 -o report.h5 --plot figures/
     """
     with exit_on_error(debug):
         _check_outputs(outputs)
         data = read_input(input_path)
-        from automodal.pipeline import Settings, identify as run
-        from automodal.io.report import format_table, report_dict, write_report
+        from automodal.io.report import format_table, report_dict, save_report
+        from automodal.pipeline import Settings
+        from automodal.pipeline import identify as run
 
         settings = Settings(
             band_hz=tuple(band) if band else None,
@@ -90,11 +95,16 @@ def identify(
                 result = run(data, settings, progress=bar.update)
         else:
             result = run(data, settings)
+        report = report_dict(result, data, input_path=input_path)
         for out in outputs:
-            write_report(out, result, data, input_path=input_path)
+            save_report(out, report, result.poles, frf=result.frf_fit)
+        if plot_dir:
+            from automodal.plots import save_figures
+
+            save_figures(report, {"poles": result.poles, "frf": result.frf_fit}, plot_dir)
         if as_json:
             import json
 
-            click.echo(json.dumps(report_dict(result, data, input_path=input_path), indent=2))
+            click.echo(json.dumps(report, indent=2))
         elif not quiet:
             click.echo(format_table(result))

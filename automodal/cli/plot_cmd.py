@@ -29,7 +29,8 @@ def _check_output(out: Path) -> None:
 
 def _missing(report_path: str, arrays: dict) -> str | None:
     """One line naming what the report lacks for a full figure, or None."""
-    lacks = [what for key, what in (("poles", "bootstrap poles"), ("frf", "FRFs")) if not arrays[key]]
+    needs = (("poles", "bootstrap poles"), ("frf", "FRFs"))
+    lacks = [what for key, what in needs if not arrays[key]]
     if not lacks:
         return None
     return (

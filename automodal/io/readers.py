@@ -30,7 +30,7 @@ import numpy as np
 from automodal.errors import InputError
 from automodal.frfdata import FRFData
 
-__all__ = ["READERS", "check_frf_arrays", "read_any"]
+__all__ = ["READERS", "check_frf_arrays", "check_is_file", "read_any"]
 
 READERS: dict[str, tuple[str, str]] = {
     ".h5": ("automodal.io.frf_file", "read_frf"),
@@ -68,10 +68,7 @@ def read_any(path: str | os.PathLike[str]) -> FRFData:
     """
     source = str(path)
     p = Path(path)
-    if not p.exists():
-        raise InputError("no such file", source)
-    if p.is_dir():
-        raise InputError("is a folder, not an input file", source)
+    check_is_file(p, source)
     target = READERS.get(p.suffix.lower())
     if target is None:
         if not _has_hdf5_signature(p):
@@ -82,6 +79,27 @@ def read_any(path: str | os.PathLike[str]) -> FRFData:
     module, name = target
     reader = getattr(importlib.import_module(module), name)
     return reader(path)
+
+
+def check_is_file(path: Path, source: str) -> None:
+    """Refuse a missing path or a folder.
+
+    Parameters
+    ----------
+    path : Path
+        The input.
+    source : str
+        How to name it in messages.
+
+    Raises
+    ------
+    InputError
+        ``"no such file"`` or ``"is a folder, not an input file"``.
+    """
+    if not path.exists():
+        raise InputError("no such file", source)
+    if path.is_dir():
+        raise InputError("is a folder, not an input file", source)
 
 
 def _has_hdf5_signature(path: Path) -> bool:

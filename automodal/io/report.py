@@ -163,6 +163,9 @@ def _input_section(
         "output_directions": (
             None if data.output_directions is None else [str(d) for d in data.output_directions]
         ),
+        "n_lines_analysed": int(result.n_lines),
+        "reciprocity": bool(result.reciprocity),
+        "mode_shape_channels": [str(n) for n in (result.shape_channels or data.output_names)],
     }
 
 
@@ -453,7 +456,8 @@ def _write_hdf5(
         _write_attributes(f.create_group("input"), report["input"])
         _write_attributes(f.create_group("summary"), report["summary"])
         _write_attributes(f.create_group("trashbox"), report["trashbox"])
-        _write_modes(f.create_group("modes"), report["modes"], int(report["input"]["n_outputs"]))
+        n_shape = len(report["input"].get("mode_shape_channels") or report["input"]["output_names"])
+        _write_modes(f.create_group("modes"), report["modes"], n_shape)
         if poles is not None:
             _write_poles(f.create_group("poles"), poles)
         if frf is not None:

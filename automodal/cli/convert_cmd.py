@@ -1,0 +1,78 @@
+"""``automodal convert``: any supported input (UFF/UNV, CSV, NPZ, FRF file) to an FRF file."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import click
+
+from automodal.cli._common import debug_option, exit_on_error
+from automodal.errors import InputError
+
+if TYPE_CHECKING:
+    from automodal.frfdata import FRFData
+
+OUTPUT_SUFFIXES = (".h5", ".hdf5")
+
+
+def summary(output: Path, data: FRFData) -> str:
+    """One line describing what was written.
+
+    Parameters
+    ----------
+    output : Path
+        The FRF file written.
+    data : FRFData
+        Its content.
+
+    Returns
+    -------
+    str
+        Channels, quantity (marked as assumed when the input did not state it) and lines.
+    """
+    # the readers' note for a quantity the input does not state starts "not stated"
+    assumed = str(data.attributes.get("quantity_source", "")).startswith("not stated")
+    quantity = f"{data.quantity} (assumed: not stated in the input)" if assumed else data.quantity
+    f = data.frequency
+    text = (f"{output}: {data.n_outputs} output(s) x {data.n_inputs} input(s), {quantity}, "
+            f"{data.n_freq} lines {f[0]:.6g}-{f[-1]:.6g} Hz")
+    if data.attributes.get("dropped_0hz_line"):
+        text += "; 0 Hz line dropped (NaN or 0+0j)"
+    return text
+
+
+@click.command(
+    "convert",
+    context_settings={"help_option_names": ["-h", "--help"]},
+    epilog="""\b
+Examples:
+  automodal convert measurement.uff measurement.h5
+  automodal convert frfs.csv test.h5 --quiet""",
+)
+@click.argument("input_path", metavar="INPUT", type=click.Path())
+@click.argument("output", metavar="OUTPUT.h5", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("-q", "--quiet", is_flag=True, help="Print nothing on success.")
+@debug_option
+def convert(input_path: str, output: Path, quiet: bool, debug: bool) -> None:
+    """Convert INPUT to an automodal FRF file OUTPUT.h5 (shared/spec/frf-file.md).
+
+    INPUT is a UFF/UNV file with dataset 58 FRFs (.uff, .unv), a CSV or text table
+    (.csv, .txt: frequency, then real/imaginary column pairs, one input), a NumPy archive
+    (.npz: keys frequency and frf) or an FRF file (.h5). OUTPUT is written atomically: it
+    is replaced only once complete. Prints one summary line unless --quiet.
+    """
+    with exit_on_error(debug):
+        if output.suffix.lower() not in OUTPUT_SUFFIXES:
+            raise InputError("the output must be an FRF file with suffix .h5 or .hdf5", output)
+        if not output.parent.is_dir():
+            raise InputError("the folder to write into does not exist", output)
+        if Path(input_path).is_dir():
+            raise InputError("is a folder, not an input file", input_path)
+        from automodal.io.frf_file import write_frf
+        from automodal.io.readers import read_any
+
+        data = read_any(input_path)
+        write_frf(output, data)
+        if not quiet:
+            click.echo(summary(output, data))

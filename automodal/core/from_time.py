@@ -1,0 +1,269 @@
+"""From time series to FRFs: the automatic choices that turn a :class:`TimeSeries` into an
+:class:`FRFData` for the pipeline (pure: no I/O, nothing printed).
+
+Three routes, chosen from the data:
+
+* **random excitation** (forces measured, not impulsive): Welch H1 with a Hann window and
+  50 % overlap, segment from :func:`~automodal.core.spectra.choose_segment`, with coherence
+  and record estimates;
+* **impact** (forces impulsive): one rectangular record per hammer hit
+  (:func:`~automodal.core.spectra.detect_hits`), force window, an exponential window only
+  when the response has not died out in the record, H1 over the hits (each hit a record);
+* **operational** (no forces): half spectra of all outputs against automatic reference
+  channels (:func:`~automodal.core.spectra.choose_references`), the references acting as
+  the inputs; ``attributes["analysis"] = "operational"``.
+
+Only lines ``0 < f <= usable_fraction * fs / 2`` are kept: the 0 Hz line (means removed)
+is dropped, and by default so is the top of the band where an acquisition system's
+anti-alias filter acts (analysers show ``fs / 2.56`` for that reason).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from automodal.core import spectra
+from automodal.frfdata import QUANTITIES, FRFData
+from automodal.timedata import TimeSeries
+
+__all__ = ["EXCITATIONS", "USABLE_FRACTION", "frfdata_from_time"]
+
+EXCITATIONS = ("auto", "random", "impact", "operational")
+"""Routes of :func:`frfdata_from_time`; ``"auto"`` picks one from the data."""
+
+USABLE_FRACTION = 1.0 / 1.28
+"""Fraction of the Nyquist band kept (``fs / 2.56``; above it anti-alias filters act)."""
+
+DEFAULT_QUANTITY = "displacement"
+"""Quantity assumed when the data do not say (the FRF file's default)."""
+
+
+def frfdata_from_time(
+    ts: TimeSeries,
+    *,
+    excitation: str = "auto",
+    nperseg: int | None = None,
+    references: list[int] | None = None,
+    max_references: int = 3,
+    lag_tail: float = spectra.LAG_WINDOW_TAIL,
+    usable_fraction: float = USABLE_FRACTION,
+) -> tuple[FRFData, dict[str, Any]]:
+    """Turn a time-series test into FRFs (H1 or half spectra) for the pipeline.
+
+    Parameters
+    ----------
+    ts : TimeSeries
+        The test. ``ts.attributes["quantity"]``, when present, is the response quantity
+        (one of ``displacement``, ``velocity``, ``acceleration``).
+    excitation : {"auto", "random", "impact", "operational"}
+        ``"auto"``: operational without inputs, impact when the forces are impulsive
+        (:func:`~automodal.core.spectra.detect_hits`), random otherwise.
+    nperseg : int, optional
+        Segment length (random: Welch segment; operational: FFT length, max lag
+        ``nperseg // 2``). Default :func:`~automodal.core.spectra.choose_segment`. Ignored
+        for impacts (one record per hit).
+    references : list of int, optional
+        Reference outputs of the operational route (default automatic).
+    max_references : int
+        Most automatic references.
+    lag_tail : float
+        Value of the exponential lag window at the max lag (operational route).
+    usable_fraction : float
+        Fraction of the Nyquist band kept, in (0, 1].
+
+    Returns
+    -------
+    data : FRFData
+        ``quantity`` from the attributes, else ``"displacement"`` (the FRF file's default;
+        ``info["quantity_assumed"]`` says so). H1 routes set ``coherence`` and
+        ``records``; the operational route has the references as inputs (named after
+        them) and ``attributes["analysis"] = "operational"``. Other attributes of ``ts``
+        are copied; ``source`` is kept.
+    info : dict
+        The choices, JSON-friendly: ``analysis``, ``sample_rate_hz``, ``n_samples``,
+        ``nperseg``, ``window``, ``n_segments``, ``frequency_resolution_hz``, ``band_hz``,
+        ``n_lines``, ``quantity``, ``quantity_assumed`` and per route: ``overlap``,
+        ``n_records``, ``segments_per_record`` (H1); ``hits``, ``force_window_samples``,
+        ``exponential_decay_per_s`` (impact); ``references``, ``reference_names``,
+        ``max_lag_samples``, ``max_lag_s``, ``lag_window``, ``lag_window_tail``,
+        ``lag_window_decay_per_s`` (operational). A window decay ``a`` > 0 adds ``a`` to
+        every pole's decay rate: correct identified damping with
+        :func:`~automodal.core.spectra.undo_exponential_window`.
+
+    Raises
+    ------
+    ValueError
+        On an unknown ``excitation`` or ``quantity``, impact or random analysis without
+        inputs, a constant (dead) channel, or a record too short for the analysis.
+    """
+    if excitation not in EXCITATIONS:
+        raise ValueError(f"excitation must be one of {EXCITATIONS}, got {excitation!r}")
+    if not 0.0 < usable_fraction <= 1.0:
+        raise ValueError("usable_fraction must be in (0, 1]")
+    _check_not_constant(ts.outputs, ts.output_names, "output")
+    if ts.inputs is not None:
+        _check_not_constant(ts.inputs, ts.input_names, "input")
+    attributes = dict(ts.attributes)
+    quantity = attributes.pop("quantity", None)
+    assumed = quantity is None
+    quantity = DEFAULT_QUANTITY if assumed else str(quantity)
+    if quantity not in QUANTITIES:
+        raise ValueError(f"unknown quantity {quantity!r} (expected one of {', '.join(QUANTITIES)})")
+
+    hits = None
+    if excitation == "auto":
+        if ts.inputs is None:
+            excitation = "operational"
+        else:
+            hits = spectra.detect_hits(ts.inputs, ts.sample_rate)
+            excitation = "random" if hits is None else "impact"
+    elif excitation in ("random", "impact") and ts.inputs is None:
+        raise ValueError(f"{excitation} analysis needs measured forces (inputs)")
+
+    fs = ts.sample_rate
+    info: dict[str, Any] = {
+        "sample_rate_hz": fs,
+        "n_samples": ts.n_samples,
+        "duration_s": ts.duration,
+        "quantity": quantity,
+        "quantity_assumed": assumed,
+        "usable_fraction": float(usable_fraction),
+    }
+    if excitation == "operational":
+        freq, H, coherence, records, input_names = _operational(
+            ts, nperseg, references, max_references, lag_tail, info
+        )
+        attributes["analysis"] = "operational"
+    elif excitation == "impact":
+        freq, H, coherence, records = _impact(ts, hits, info)
+        input_names = ts.input_names
+        attributes["analysis"] = "impact"
+    else:
+        freq, H, coherence, records = _random(ts, nperseg, info)
+        input_names = ts.input_names
+        attributes["analysis"] = "random"
+
+    keep = (freq > 0) & (freq <= usable_fraction * fs / 2.0 * (1 + 1e-12))
+    if np.count_nonzero(keep) < 2:
+        raise ValueError("the record is too short: fewer than 2 frequency lines")
+    info["band_hz"] = [float(freq[keep][0]), float(freq[keep][-1])]
+    info["n_lines"] = int(np.count_nonzero(keep))
+    data = FRFData(
+        frequency=freq[keep],
+        frf=H[keep],
+        quantity=quantity,
+        coherence=None if coherence is None else coherence[keep],
+        records=None if records is None else records[:, keep],
+        output_names=list(ts.output_names),
+        input_names=list(input_names),
+        attributes=attributes,
+        source=ts.source,
+    )
+    return data, info
+
+
+def _random(
+    ts: TimeSeries, nperseg: int | None, info: dict[str, Any]
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Welch H1 (Hann, 50 % overlap)."""
+    fs = ts.sample_rate
+    L = int(nperseg or spectra.choose_segment(ts.n_samples, fs))
+    n_seg = spectra.segment_count(ts.n_samples, L, spectra.DEFAULT_OVERLAP)
+    if n_seg < 1:
+        raise ValueError(f"the record ({ts.n_samples} samples) is shorter than one segment ({L})")
+    freq, H, coh, rec = spectra.h1_estimate(ts.outputs, ts.inputs, fs, L, "hann")
+    info.update(
+        analysis="h1",
+        excitation="random",
+        window="hann",
+        nperseg=L,
+        overlap=spectra.DEFAULT_OVERLAP,
+        n_segments=int(n_seg),
+        frequency_resolution_hz=fs / L,
+        n_records=int(rec.shape[0]),
+        segments_per_record=int(n_seg // rec.shape[0]),
+    )
+    return freq, H, coh, rec
+
+
+def _impact(
+    ts: TimeSeries, hits: tuple[np.ndarray, int] | None, info: dict[str, Any]
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """H1 over hammer hits: rectangular records, force window, exponential if needed."""
+    fs = ts.sample_rate
+    if hits is None:
+        hits = spectra.detect_hits(ts.inputs, fs)
+        if hits is None:
+            raise ValueError("the forces are not impulsive: no hammer hit found")
+    starts, length = hits
+    if length < 32:
+        raise ValueError(f"the records after the hits are too short ({length} samples)")
+    u, kept = spectra.force_window(ts.inputs, starts, length)
+    decay = spectra.decay_needed(ts.outputs, starts, length, fs)
+    u = spectra.exponential_records(u, starts, length, fs, decay)
+    y = spectra.exponential_records(ts.outputs, starts, length, fs, decay)
+    freq, H, coh, rec = spectra.h1_estimate(
+        y, u, fs, length, "boxcar", starts=starts, segments_per_record=1
+    )
+    info.update(
+        analysis="h1",
+        excitation="impact",
+        window="boxcar" + (" + exponential" if decay > 0 else "") + " + force window",
+        nperseg=int(length),
+        n_segments=int(starts.size),
+        frequency_resolution_hz=fs / length,
+        hits=[int(s) for s in starts],
+        force_window_samples=int(kept),
+        exponential_decay_per_s=float(decay),
+        n_records=int(rec.shape[0]),
+        segments_per_record=1,
+    )
+    return freq, H, coh, rec
+
+
+def _operational(
+    ts: TimeSeries,
+    nperseg: int | None,
+    references: list[int] | None,
+    max_references: int,
+    tail: float,
+    info: dict[str, Any],
+) -> tuple[np.ndarray, np.ndarray, None, None, list[str]]:
+    """Half spectra of all outputs against (automatic) references."""
+    fs = ts.sample_rate
+    L = int(nperseg or spectra.choose_segment(ts.n_samples, fs))
+    refs = (
+        list(references)
+        if references is not None
+        else spectra.choose_references(ts.outputs, fs, max_refs=max_references)
+    )
+    freq, G = spectra.half_spectra(ts.outputs, refs, fs, L, tail=tail)
+    m = L // 2
+    names = [ts.output_names[i] for i in refs]
+    info.update(
+        analysis="operational",
+        excitation="operational",
+        window="exponential lag window",
+        nperseg=L,
+        n_segments=int(ts.n_samples // m),
+        frequency_resolution_hz=fs / L,
+        references=[int(i) for i in refs],
+        reference_names=names,
+        max_lag_samples=int(m),
+        max_lag_s=m / fs,
+        lag_window="exponential",
+        lag_window_tail=float(tail),
+        lag_window_decay_per_s=spectra.exponential_decay(m, fs, tail),
+    )
+    return freq, G, None, None, names
+
+
+def _check_not_constant(x: np.ndarray, names: list[str], side: str) -> None:
+    """Refuse a dead (constant) channel: it has no spectrum to analyse."""
+    dead = np.flatnonzero(np.ptp(x, axis=0) == 0)
+    if dead.size:
+        raise ValueError(
+            f"{side} channel(s) {', '.join(names[i] for i in dead)} are constant (dead)"
+        )

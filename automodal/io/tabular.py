@@ -1,0 +1,267 @@
+"""Reading FRFs from plain tables: CSV/text files and NumPy ``.npz`` archives.
+
+CSV layout (:func:`read_csv`)::
+
+    # quantity: acceleration            <- optional; see below
+    frequency, H1_re, H1_im, H2_re, H2_im   <- optional header
+    1.0, 0.12, -0.03, 0.40, 0.01
+    2.0, ...
+
+One row per frequency line; the first column is the frequency in Hz, then one (real,
+imaginary) column pair per FRF. Each pair is one output of a single input, so the result has
+``n_outputs`` = number of pairs and ``n_inputs`` = 1 (a roving-sensor or single-reference
+test). Columns are separated by commas or by whitespace.
+
+NPZ layout (:func:`read_npz`): ``frequency`` (1-D, Hz), ``frf`` (complex, shape
+``(lines, outputs, inputs)``, or ``(lines, outputs)`` for one input), optional ``quantity``
+(a string).
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import zipfile
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from automodal.errors import InputError
+from automodal.frfdata import QUANTITIES, FRFData
+from automodal.io.readers import check_frf_arrays, check_is_file
+
+__all__ = ["read_csv", "read_npz"]
+
+_QUANTITY_LINE = re.compile(r"^#\s*quantity\s*[:=]\s*(\S+)\s*$", re.IGNORECASE)
+_REAL_SUFFIX = re.compile(r"[\s_.\-]*(re|real)$", re.IGNORECASE)
+_REAL_WRAPPED = re.compile(r"^re(al)?\s*[(\[](.*)[)\]]$", re.IGNORECASE)
+_CSV_LAYOUT = "expected a frequency column, then one real and one imaginary column per FRF"
+_NPZ_LAYOUT = ("expected keys 'frequency' (1-D, Hz) and 'frf' (complex, shape (lines, outputs, "
+               "inputs) or (lines, outputs)), and optionally 'quantity'")
+
+
+def _assumed(kind: str) -> str:
+    """The quantity note of a file that does not state its quantity."""
+    return f"not stated in the {kind} file; assumed displacement (receptance)"
+
+
+# --------------------------------------------------------------------------------- CSV
+
+
+def read_csv(path: str | os.PathLike[str]) -> FRFData:
+    """Read FRFs from a CSV or whitespace-separated text table.
+
+    The first column is the frequency in Hz; the others come in (real, imaginary) pairs,
+    one pair per FRF. All FRFs belong to one input: the result has one output per column
+    pair and a single input. A first row that is not numeric is a header: the name of each
+    pair's real column, without a ``re``/``real`` suffix or ``Re(...)`` wrapper, becomes the
+    output's name. Blank lines and lines starting with ``#`` are skipped; a comment line
+    ``# quantity: acceleration`` (or ``velocity``, ``displacement``) states the response
+    quantity, which is otherwise ``"displacement"``. ``attributes["quantity_source"]`` says
+    which.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The ``.csv`` or ``.txt`` file (UTF-8).
+
+    Returns
+    -------
+    FRFData
+        FRFs of shape ``(n_freq, n_pairs, 1)``; ``source`` is ``str(path)``.
+
+    Raises
+    ------
+    InputError
+        One line naming the file, when the file is missing or not text, has no data rows,
+        a value that is not a number, rows of different lengths, not an odd number (at least
+        3) of columns, an unknown quantity, or breaks the rules of the FRF file (frequencies
+        strictly increasing, >= 0; finite values; not all imaginary parts zero).
+    """
+    source = str(path)
+    text = _read_text(Path(path), source)
+    quantity, quantity_source = "displacement", _assumed("CSV")
+    rows: list[tuple[int, str]] = []
+    for number, raw in enumerate(text.splitlines(), start=1):
+        line = raw.strip()
+        directive = _QUANTITY_LINE.match(line)
+        if directive:
+            quantity = _known_quantity(directive.group(1), f"line {number}", source)
+            quantity_source = f"'# quantity:' comment (line {number}) of the CSV file"
+        elif line and not line.startswith("#"):
+            rows.append((number, line))
+    if not rows:
+        raise InputError(f"no data rows; {_CSV_LAYOUT}", source)
+    comma = "," in rows[0][1]
+    cells = [(n, _split(line, comma)) for n, line in rows]
+    header = None
+    if not _numeric(cells[0][1]):
+        (_, header), cells = cells[0], cells[1:]
+    table = _number_table(cells, source)
+    n_cols = table.shape[1]
+    if header is not None and len(header) != n_cols:
+        raise InputError(f"the header has {len(header)} columns but the rows have {n_cols}",
+                         source)
+    if n_cols < 3 or n_cols % 2 == 0:
+        raise InputError(f"{n_cols} columns; {_CSV_LAYOUT} (an odd number of columns, at "
+                         "least 3)", source)
+    frf = (table[:, 1::2] + 1j * table[:, 2::2])[:, :, np.newaxis]
+    frequency, frf = check_frf_arrays(table[:, 0], frf, source)
+    names = [] if header is None else [_pair_name(h, k) for k, h in enumerate(header[1::2])]
+    return FRFData(frequency=frequency, frf=frf, quantity=quantity, output_names=names,
+                   attributes={"source_format": "CSV table", "quantity_source": quantity_source},
+                   source=source)
+
+
+def _read_text(path: Path, source: str) -> str:
+    """The file as UTF-8 text (a leading byte-order mark removed)."""
+    check_is_file(path, source)
+    try:
+        return path.read_text(encoding="utf-8-sig")
+    except UnicodeDecodeError:
+        raise InputError(f"not a UTF-8 text file; {_CSV_LAYOUT}", source) from None
+    except OSError as exc:
+        raise InputError(f"cannot read the file: {exc.strerror or exc}", source) from exc
+
+
+def _split(line: str, comma: bool) -> list[str]:
+    """The cells of one row: split at commas, or at whitespace."""
+    return [cell.strip() for cell in line.split(",")] if comma else line.split()
+
+
+def _numeric(cells: list[str]) -> bool:
+    """Whether every cell is a number."""
+    try:
+        for cell in cells:
+            float(cell)
+    except ValueError:
+        return False
+    return True
+
+
+def _number_table(cells: list[tuple[int, list[str]]], source: str) -> np.ndarray:
+    """The data rows as a 2-D float array; refuse non-numbers and ragged rows."""
+    if not cells:
+        raise InputError(f"a header but no data rows; {_CSV_LAYOUT}", source)
+    first_line, first = cells[0]
+    values = []
+    for number, row in cells:
+        if len(row) != len(first):
+            raise InputError(f"line {number} has {len(row)} columns but line {first_line} has "
+                             f"{len(first)}", source)
+        try:
+            values.append([float(cell) for cell in row])
+        except ValueError:
+            bad = next(cell for cell in row if not _numeric([cell]))
+            raise InputError(f"line {number}: {bad!r} is not a number (columns must be "
+                             "separated by commas or whitespace)", source) from None
+    return np.array(values, dtype=np.float64)
+
+
+def _pair_name(real_header: str, k: int) -> str:
+    """An output's name from the header of its real column."""
+    wrapped = _REAL_WRAPPED.match(real_header)
+    name = wrapped.group(2).strip() if wrapped else _REAL_SUFFIX.sub("", real_header)
+    return name or f"y{k + 1}"
+
+
+def _known_quantity(value: str, where: str, source: str) -> str:
+    """``value`` if it is a known quantity, else refuse."""
+    if value not in QUANTITIES:
+        raise InputError(f"{where}: unknown quantity {value!r} (expected one of "
+                         f"{', '.join(QUANTITIES)})", source)
+    return value
+
+
+# --------------------------------------------------------------------------------- NPZ
+
+
+def read_npz(path: str | os.PathLike[str]) -> FRFData:
+    """Read FRFs from a NumPy ``.npz`` archive.
+
+    Parameters
+    ----------
+    path : str or path-like
+        An archive written by :func:`numpy.savez` with the keys ``frequency`` (1-D, Hz) and
+        ``frf`` (complex, shape ``(lines, outputs, inputs)``, or ``(lines, outputs)`` for a
+        single input), and optionally ``quantity`` (a string: ``"displacement"``,
+        ``"velocity"`` or ``"acceleration"``; ``"displacement"`` when absent). Other keys are
+        not read; their names are listed in ``attributes["ignored_keys"]``.
+
+    Returns
+    -------
+    FRFData
+        ``source`` is ``str(path)``; ``attributes["quantity_source"]`` says whether the
+        quantity was stated or assumed.
+
+    Raises
+    ------
+    InputError
+        One line naming the file, when it is missing, not an ``.npz`` archive, lacks a key,
+        holds a ``frf`` that is real or neither 2-D nor 3-D, a ``frequency`` of the wrong
+        length, an unknown ``quantity``, pickled objects, or breaks the rules of the FRF file.
+    """
+    source = str(path)
+    p = Path(path)
+    check_is_file(p, source)
+    try:
+        loaded = np.load(p, allow_pickle=False)
+        if not isinstance(loaded, np.lib.npyio.NpzFile):
+            raise InputError(f"a single .npy array, not an .npz archive; {_NPZ_LAYOUT}",
+                             source)
+        with loaded as archive:
+            arrays = {key: archive[key] for key in archive.files}
+    except InputError:
+        raise
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
+        problem = " ".join(str(exc).split()) or type(exc).__name__
+        raise InputError(f"cannot read as an .npz archive: {problem}", source) from exc
+    missing = [key for key in ("frequency", "frf") if key not in arrays]
+    if missing:
+        found = ", ".join(sorted(arrays)) or "none"
+        raise InputError(f"no key {' or '.join(map(repr, missing))} (keys found: {found}); "
+                         f"{_NPZ_LAYOUT}", source)
+    frequency = np.asarray(arrays["frequency"])
+    frf = _npz_frf(arrays["frf"], frequency, source)
+    attributes: dict[str, Any] = {"source_format": "NPZ archive"}
+    quantity, attributes["quantity_source"] = "displacement", _assumed("NPZ")
+    if "quantity" in arrays:
+        quantity = _npz_quantity(arrays["quantity"], source)
+        attributes["quantity_source"] = "'quantity' key of the NPZ archive"
+    ignored = sorted(set(arrays) - {"frequency", "frf", "quantity"})
+    if ignored:
+        attributes["ignored_keys"] = ", ".join(ignored)
+    if frequency.dtype.kind not in "fiu":
+        raise InputError(f"'frequency' must hold real numbers, not dtype {frequency.dtype}",
+                         source)
+    frequency, frf = check_frf_arrays(frequency, frf, source)
+    return FRFData(frequency=frequency, frf=frf, quantity=quantity, attributes=attributes,
+                   source=source)
+
+
+def _npz_frf(frf: np.ndarray, frequency: np.ndarray, source: str) -> np.ndarray:
+    """The ``frf`` array as 3-D complex; refuse a real or ambiguous one."""
+    if frf.dtype.kind != "c":
+        raise InputError(f"'frf' is not complex (dtype {frf.dtype}); real FRFs are refused, "
+                         "not given zero phase", source)
+    if frf.ndim not in (2, 3):
+        raise InputError(f"'frf' has shape {frf.shape}; {_NPZ_LAYOUT}", source)
+    n_lines = frequency.size if frequency.ndim == 1 else -1
+    if frf.shape[0] != n_lines:
+        hint = " (transposed? lines must be the first axis)" if n_lines in frf.shape[1:] else ""
+        raise InputError(f"'frf' has shape {frf.shape} but 'frequency' has shape "
+                         f"{frequency.shape}; the first axis of 'frf' must have one entry per "
+                         f"frequency line{hint}", source)
+    return frf if frf.ndim == 3 else frf[:, :, np.newaxis]
+
+
+def _npz_quantity(value: np.ndarray, source: str) -> str:
+    """The ``quantity`` entry as a known quantity name."""
+    if value.shape != () or value.dtype.kind not in "US":
+        raise InputError(f"'quantity' must be one string (one of {', '.join(QUANTITIES)}), not "
+                         f"an array of shape {value.shape} and dtype {value.dtype}", source)
+    text = value.item()
+    if isinstance(text, bytes):
+        text = text.decode("utf-8", errors="replace")
+    return _known_quantity(str(text), "'quantity'", source)

@@ -1,0 +1,398 @@
+"""Reading FRFs from universal files (UFF/UNV), dataset 58, ASCII or binary, with pyuff.
+
+Each dataset 58 holds one function between a response DOF (node and direction) and a
+reference DOF. :func:`read_uff` groups the sets by reference (input) and response (output)
+into one ``(n_freq, n_outputs, n_inputs)`` array, in the order in which the channels first
+appear in the file. Data sets of other types (geometry, units, ...) are skipped.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from automodal.errors import InputError
+from automodal.frfdata import FRFData
+from automodal.io.readers import check_frf_arrays, check_is_file
+
+__all__ = ["FUNCTION_TYPES", "direction_name", "read_uff"]
+
+FRF_FUNCTION_TYPE = 4
+"""Function type (record 6, field 1) of a frequency response function."""
+
+FUNCTION_TYPES = {
+    0: "general or unknown", 1: "time response", 2: "auto spectrum", 3: "cross spectrum",
+    4: "frequency response function", 5: "transmissibility", 6: "coherence",
+    7: "auto correlation", 8: "cross correlation", 9: "power spectral density",
+    10: "energy spectral density", 11: "probability density function", 12: "spectrum",
+    13: "cumulative frequency distribution", 14: "peaks valley", 15: "stress/cycles",
+    16: "strain/cycles", 17: "orbit", 18: "mode indicator function", 19: "force pattern",
+    20: "partial power", 21: "partial coherence", 22: "eigenvalue", 23: "eigenvector",
+    24: "shock response spectrum", 25: "finite impulse response filter",
+    26: "multiple coherence", 27: "order function",
+}
+"""Names of the dataset 58 function types."""
+
+_ORDINATE_TYPES = {2: "real, single precision", 4: "real, double precision",
+                   5: "complex, single precision", 6: "complex, double precision"}
+_REAL_ORDINATES = (2, 4)
+
+_MOTION_TYPES = {8: "displacement", 11: "velocity", 12: "acceleration"}
+"""Specific data types (records 8 to 11, field 1) that name a response quantity."""
+
+_NOT_FREQUENCY_ABSCISSAS = {17: "time", 19: "rpm", 20: "order"}
+
+_AXES = "XYZ"
+
+# Units or names in the ordinate axis labels, tried in this order (spaces removed, lower case).
+_LABEL_PATTERNS = (
+    ("acceleration", re.compile(r"accel|inertance|/s(\^|\*\*)?2|/s²|/sec(\^|\*\*)?2|^g($|/)")),
+    ("velocity", re.compile(r"veloc|mobility|/s($|/|\))|/sec($|/|\))")),
+    ("displacement", re.compile(r"displ|receptance|compliance|^\(?(m|mm|µm|um|in)($|/|\))")),
+)
+# The FRF names alone, for the free-text ID lines.
+_ID_PATTERNS = (
+    ("acceleration", re.compile(r"accelerance|inertance")),
+    ("velocity", re.compile(r"mobility")),
+    ("displacement", re.compile(r"receptance|compliance")),
+)
+
+
+def read_uff(path: str | os.PathLike[str]) -> FRFData:
+    """Read the FRFs of a universal file (dataset 58, ASCII or binary).
+
+    Every dataset 58 must be an FRF (function type 4) with complex values over one common
+    frequency axis (uneven spacing is fine when every set has the same lines). The sets are
+    grouped by response DOF (output: response node and direction) and reference DOF
+    (input: reference node and direction); every (output, input) pair must be present
+    exactly once. A roving-hammer test (one response, many references) and a roving-sensor
+    test (many responses, one reference) are complete by construction.
+
+    The response quantity comes from the ordinate numerator's specific data type
+    (8 displacement, 11 velocity, 12 acceleration), else from the ordinate axis labels or
+    units (e.g. ``"m/s^2"``), else from the words accelerance/inertance, mobility,
+    receptance/compliance in the ID lines; failing all that it is ``"displacement"``.
+    ``attributes["quantity_source"]`` always says which it was.
+
+    A line at 0 Hz that holds NaN or 0+0j in any FRF (a common placeholder for the DC line,
+    which a measurement cannot give) is dropped, and ``attributes["dropped_0hz_line"]`` says
+    so. Any other non-finite value is refused.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The ``.uff`` or ``.unv`` file.
+
+    Returns
+    -------
+    FRFData
+        FRFs of shape ``(n_freq, n_outputs, n_inputs)``, with channel names
+        (the entity names where they tell the channels apart, else node and direction such
+        as ``"12+Z"``), node numbers and directions (``"+X"``, ``"-Z"``, ``"+RX"`` for a
+        rotation, ``"scalar"``). ``attributes`` holds ``source_format`` and
+        ``quantity_source`` (and ``dropped_0hz_line`` when that happened); ``source`` is
+        ``str(path)``.
+
+    Raises
+    ------
+    InputError
+        One line naming the file, when the file is missing or unreadable (any pyuff error),
+        holds no dataset 58, holds a function that is not an FRF (saying which type was
+        found), real-valued data, sets over different frequency axes, a non-frequency
+        abscissa, a ratio of motion to motion, sets that disagree on the response quantity,
+        an (output, input) pair given twice or missing, or non-finite values.
+    """
+    source = str(path)
+    p = Path(path)
+    check_is_file(p, source)
+    sets = _read_sets(p, source)
+    for number, dset in sets:
+        _check_set(number, dset, source)
+    frequency = _common_frequency(sets, source)
+    outputs, inputs, frf = _group(sets, frequency.size, source)
+    quantity, quantity_source = _quantity(sets, source)
+    attributes: dict[str, Any] = {
+        "source_format": _format_name(sets),
+        "quantity_source": quantity_source,
+    }
+    frequency, frf, dropped = _drop_placeholder_dc_line(frequency, frf)
+    if dropped:
+        attributes["dropped_0hz_line"] = dropped
+    frequency, frf = check_frf_arrays(frequency, frf, source)
+    output_names, input_names = _channel_names(outputs, inputs)
+    return FRFData(
+        frequency=frequency,
+        frf=frf,
+        quantity=quantity,
+        output_names=output_names,
+        input_names=input_names,
+        output_nodes=np.array([c["node"] for c in outputs], dtype=np.int64),
+        input_nodes=np.array([c["node"] for c in inputs], dtype=np.int64),
+        output_directions=[direction_name(c["dir"]) for c in outputs],
+        input_directions=[direction_name(c["dir"]) for c in inputs],
+        attributes=attributes,
+        source=source,
+    )
+
+
+def direction_name(code: int) -> str:
+    """A UFF direction code as text.
+
+    Parameters
+    ----------
+    code : int
+        -6..6: 1, 2, 3 translations along X, Y, Z; 4, 5, 6 rotations about them; negative
+        for the negative direction; 0 a scalar point.
+
+    Returns
+    -------
+    str
+        ``"+X"``, ``"-Z"``, ``"+RY"`` (rotation), ``"scalar"``, or ``"code N"`` for a code
+        outside -6..6.
+    """
+    if code == 0:
+        return "scalar"
+    if not 1 <= abs(code) <= 6:
+        return f"code {code}"
+    sign = "+" if code > 0 else "-"
+    axis = _AXES[(abs(code) - 1) % 3]
+    return f"{sign}R{axis}" if abs(code) > 3 else f"{sign}{axis}"
+
+
+# ----------------------------------------------------------------------------- reading
+
+
+def _read_sets(path: Path, source: str) -> list[tuple[int, dict[str, Any]]]:
+    """All datasets 58 of the file as (1-based number of the set in the file, dict)."""
+    try:
+        import pyuff
+
+        uff = pyuff.UFF(os.fspath(path))
+        types = [int(t) for t in uff.get_set_types()]
+    except Exception as exc:  # noqa: BLE001 - pyuff raises bare Exception
+        raise InputError(f"cannot read as a UFF file: {_describe(exc)}", source) from exc
+    wanted = [i for i, t in enumerate(types) if t == 58]
+    if not wanted:
+        found = sorted({t for t in types if t > 0})
+        what = ("data sets of type " + ", ".join(map(str, found))) if found else "no UFF data set"
+        raise InputError(f"no dataset 58 (function at nodal DOF) in the file; found {what}",
+                         source)
+    sets = []
+    for i in wanted:
+        try:
+            dset = uff.read_sets(i)
+        except Exception as exc:  # noqa: BLE001 - pyuff raises bare Exception
+            raise InputError(f"cannot read data set {i + 1} (dataset 58): {_describe(exc)}",
+                             source) from exc
+        sets.append((i + 1, dset))
+    return sets
+
+
+def _check_set(number: int, dset: dict[str, Any], source: str) -> None:
+    """Refuse a set that is not a complex FRF over frequency."""
+    func_type = int(dset.get("func_type", -1))
+    if func_type != FRF_FUNCTION_TYPE:
+        name = FUNCTION_TYPES.get(func_type, "unknown type")
+        raise InputError(f"data set {number} is function type {func_type} ({name}), not "
+                         f"{FRF_FUNCTION_TYPE} (frequency response function)", source)
+    ord_type = int(dset.get("ord_data_type", -1))
+    if ord_type in _REAL_ORDINATES:
+        raise InputError(f"data set {number} holds real values (ordinate data type {ord_type}, "
+                         f"{_ORDINATE_TYPES[ord_type]}); an FRF must be complex", source)
+    abscissa = int(dset.get("abscissa_spec_data_type", 0))
+    if abscissa in _NOT_FREQUENCY_ABSCISSAS:
+        raise InputError(f"data set {number} has a {_NOT_FREQUENCY_ABSCISSAS[abscissa]} "
+                         f"abscissa (data type {abscissa}), not frequency", source)
+    denominator = int(dset.get("orddenom_spec_data_type", 0))
+    if denominator in _MOTION_TYPES:
+        raise InputError(f"data set {number} is per unit {_MOTION_TYPES[denominator]} "
+                         f"(ordinate denominator data type {denominator}), not per unit "
+                         "force", source)
+    x, data = np.asarray(dset.get("x")), np.asarray(dset.get("data"))
+    if x.ndim != 1 or data.shape != x.shape or x.size == 0:
+        raise InputError(f"data set {number} is damaged: {x.size} abscissa values for "
+                         f"{data.size} ordinate values", source)
+
+
+def _common_frequency(sets: list[tuple[int, dict[str, Any]]], source: str) -> np.ndarray:
+    """The frequency axis shared by every set (refuse sets over different axes)."""
+    first_number, first = sets[0]
+    ref = np.asarray(first["x"], dtype=np.float64)
+    scale = float(np.max(np.abs(ref))) if np.all(np.isfinite(ref)) else 0.0
+    for number, dset in sets[1:]:
+        x = np.asarray(dset["x"], dtype=np.float64)
+        if x.shape != ref.shape or not np.allclose(x, ref, rtol=1e-9, atol=1e-12 * scale):
+            raise InputError(
+                f"data set {number} has a different frequency axis ({_axis(x)}) from data set "
+                f"{first_number} ({_axis(ref)}); all FRFs must share one axis", source)
+    return ref
+
+
+def _axis(x: np.ndarray) -> str:
+    """A frequency axis in a few words."""
+    return f"{x.size} lines, {x[0]:g}-{x[-1]:g} Hz"
+
+
+# ---------------------------------------------------------------------------- grouping
+
+
+def _group(
+    sets: list[tuple[int, dict[str, Any]]], n_freq: int, source: str
+) -> tuple[list[dict[str, Any]], list[dict[str, Any]], np.ndarray]:
+    """Group the sets by (response DOF, reference DOF) into one FRF array.
+
+    Returns the output channels, the input channels (dicts with ``node``, ``dir`` and
+    ``entity``, in order of first appearance) and the FRF array.
+    """
+    outputs: dict[tuple[int, int], int] = {}
+    inputs: dict[tuple[int, int], int] = {}
+    out_info: list[dict[str, Any]] = []
+    in_info: list[dict[str, Any]] = []
+    cells: dict[tuple[int, int], int] = {}
+    for number, dset in sets:
+        i = _channel_index(outputs, out_info, dset, "rsp")
+        j = _channel_index(inputs, in_info, dset, "ref")
+        if (i, j) in cells:
+            raise InputError(
+                f"data sets {cells[i, j]} and {number} are both the FRF of output "
+                f"{_dof(out_info[i])} for input {_dof(in_info[j])}", source)
+        cells[i, j] = number
+    missing = [(i, j) for i in range(len(out_info)) for j in range(len(in_info))
+               if (i, j) not in cells]
+    if missing:
+        i, j = missing[0]
+        raise InputError(
+            f"{len(missing)} of the {len(out_info) * len(in_info)} (output, input) pairs have "
+            f"no FRF, e.g. output {_dof(out_info[i])} for input {_dof(in_info[j])}; every "
+            f"response must be measured for every reference", source)
+    frf = np.empty((n_freq, len(out_info), len(in_info)), dtype=np.complex128)
+    by_number = dict(sets)
+    for (i, j), number in cells.items():
+        frf[:, i, j] = np.asarray(by_number[number]["data"])
+    return out_info, in_info, frf
+
+
+def _channel_index(
+    index: dict[tuple[int, int], int], info: list[dict[str, Any]], dset: dict[str, Any],
+    prefix: str,
+) -> int:
+    """The index of the set's response (``prefix="rsp"``) or reference channel, adding it."""
+    key = (int(dset.get(f"{prefix}_node", 0)), int(dset.get(f"{prefix}_dir", 0)))
+    if key not in index:
+        index[key] = len(info)
+        entity = str(dset.get(f"{prefix}_ent_name", "") or "").strip()
+        info.append({"node": key[0], "dir": key[1], "entity": entity})
+    return index[key]
+
+
+def _dof(channel: dict[str, Any]) -> str:
+    """Node and direction of a channel, e.g. ``"12+Z"``."""
+    direction = direction_name(channel["dir"])
+    return str(channel["node"]) if direction == "scalar" else f"{channel['node']}{direction}"
+
+
+def _channel_names(
+    outputs: list[dict[str, Any]], inputs: list[dict[str, Any]]
+) -> tuple[list[str], list[str]]:
+    """Names of the output and input channels.
+
+    The entity names of record 6 are used when every DOF of the file has one (not
+    ``NONE``) and no two DOFs share one; otherwise (e.g. one test name written into every
+    set) the names are node and direction, such as ``"12+Z"``.
+    """
+    entity_of = {(c["node"], c["dir"]): c["entity"] for c in outputs + inputs}
+    entities = list(entity_of.values())
+    usable = all(e and e.upper() != "NONE" for e in entities)
+    if usable and len(set(entities)) == len(entities):
+        return [c["entity"] for c in outputs], [c["entity"] for c in inputs]
+    return [_dof(c) for c in outputs], [_dof(c) for c in inputs]
+
+
+# ---------------------------------------------------------------------------- quantity
+
+
+def _quantity(sets: list[tuple[int, dict[str, Any]]], source: str) -> tuple[str, str]:
+    """The response quantity of the sets and a note saying where it came from."""
+    found = [(number, *_set_quantity(dset)) for number, dset in sets]
+    known = [(number, q, why) for number, q, why in found if q is not None]
+    if not known:
+        return "displacement", ("not stated in the UFF file (no response data type, axis "
+                                "label or FRF name); assumed displacement (receptance)")
+    n_first, quantity, why = known[0]
+    for number, q, _ in known[1:]:
+        if q != quantity:
+            raise InputError(f"the data sets disagree on the response quantity: data set "
+                             f"{n_first} is {quantity}, data set {number} is {q}", source)
+    note = f"{why} of data set {n_first}"
+    if len(known) < len(sets):
+        note += f"; {len(sets) - len(known)} of {len(sets)} sets do not say, assumed the same"
+    return quantity, note
+
+
+def _set_quantity(dset: dict[str, Any]) -> tuple[str | None, str]:
+    """The response quantity one set states, and how it states it (None when it does not)."""
+    code = int(dset.get("ordinate_spec_data_type", 0))
+    if code in _MOTION_TYPES:
+        return _MOTION_TYPES[code], f"ordinate data type {code} ({_MOTION_TYPES[code]})"
+    for key in ("ordinate_axis_units_lab", "ordinate_axis_lab"):
+        label = _text(dset.get(key))
+        quantity = _match(_LABEL_PATTERNS, label, first_wins=True)
+        if quantity:
+            return quantity, f"ordinate axis label {dset.get(key)!r}"
+    for k in range(1, 6):
+        quantity = _match(_ID_PATTERNS, _text(dset.get(f"id{k}")), first_wins=False)
+        if quantity:
+            return quantity, f"ID line {k} {dset.get(f'id{k}')!r}"
+    return None, ""
+
+
+def _text(value: Any) -> str:
+    """A header string, lower case without spaces ("" for NONE or nothing)."""
+    text = "".join(str(value or "").split()).lower()
+    return "" if text == "none" else text
+
+
+def _match(patterns: tuple[tuple[str, re.Pattern[str]], ...], text: str,
+           first_wins: bool) -> str | None:
+    """The quantity whose pattern matches ``text``.
+
+    With ``first_wins`` the first matching pattern decides (the label patterns are ordered
+    most specific first); otherwise a text that matches several quantities says nothing.
+    """
+    hits = [quantity for quantity, pattern in patterns if pattern.search(text)] if text else []
+    if not hits or (len(hits) > 1 and not first_wins):
+        return None
+    return hits[0]
+
+
+# ------------------------------------------------------------------------------ others
+
+
+def _drop_placeholder_dc_line(
+    frequency: np.ndarray, frf: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, str]:
+    """Drop a 0 Hz line that holds NaN or 0+0j in some FRF; return a note when dropped."""
+    if frequency.size < 2 or frequency[0] != 0.0:
+        return frequency, frf, ""
+    line = frf[0]
+    placeholder = np.isnan(line) | (line == 0)
+    if not placeholder.any():
+        return frequency, frf, ""
+    note = (f"the 0 Hz line was dropped: {int(placeholder.sum())} of {line.size} FRFs hold "
+            "NaN or 0+0j there")
+    return frequency[1:], frf[1:], note
+
+
+def _format_name(sets: list[tuple[int, dict[str, Any]]]) -> str:
+    """``"UFF dataset 58 (ASCII)"``, ``"... (binary)"`` or ``"... (ASCII and binary)"``."""
+    kinds = {"binary" if dset.get("binary") else "ASCII" for _, dset in sets}
+    return f"UFF dataset 58 ({' and '.join(sorted(kinds))})"
+
+
+def _describe(exc: BaseException) -> str:
+    """One line saying what an exception was."""
+    return " ".join(str(exc).split()) or type(exc).__name__

@@ -1,0 +1,109 @@
+"""The in-memory time-series test: raw responses (and forces) sampled at one rate.
+
+A :class:`TimeSeries` is what the ``/time`` group of the automodal FRF file holds. It is
+turned into an :class:`~automodal.frfdata.FRFData` by
+:func:`automodal.core.from_time.frfdata_from_time` (H1 estimates when forces were measured,
+half spectra for output-only data), which the pipeline then identifies.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+
+@dataclass
+class TimeSeries:
+    """Sampled responses of one test, with the measured forces when there are any.
+
+    Attributes
+    ----------
+    outputs : ndarray, shape (n_samples, n_outputs), float
+        Response channels, one column per sensor. A 1-D array is taken as one channel.
+    inputs : ndarray, shape (n_samples, n_inputs), float, or None
+        Measured forces (same samples as ``outputs``); None for output-only (operational)
+        data. A 1-D array is taken as one channel.
+    sample_rate : float
+        Samples per second (Hz), > 0.
+    output_names, input_names : list of str
+        Channel names (defaults ``y1..``, ``u1..``; no input names without inputs).
+    attributes : dict
+        Free attributes of the test (structure, date, ``quantity`` of the responses, ...).
+    source : str or None
+        Where the data came from (a path), for messages and reports.
+
+    Raises
+    ------
+    ValueError
+        If the arrays are not 1-D or 2-D, have no sample or channel, differ in their number
+        of samples, if a name list has the wrong length, or if ``sample_rate`` is not a
+        positive finite number.
+    """
+
+    outputs: np.ndarray
+    inputs: np.ndarray | None = None
+    sample_rate: float = 1.0
+    output_names: list[str] = field(default_factory=list)
+    input_names: list[str] = field(default_factory=list)
+    attributes: dict[str, Any] = field(default_factory=dict)
+    source: str | None = None
+
+    def __post_init__(self) -> None:
+        self.outputs = _as_channels(self.outputs, "outputs")
+        if self.inputs is not None:
+            self.inputs = _as_channels(self.inputs, "inputs")
+            if self.inputs.shape[0] != self.outputs.shape[0]:
+                raise ValueError(
+                    f"inputs have {self.inputs.shape[0]} samples but outputs "
+                    f"{self.outputs.shape[0]}"
+                )
+        rate = float(self.sample_rate)
+        if not (np.isfinite(rate) and rate > 0):
+            raise ValueError(f"sample_rate must be a positive finite number, got {rate!r}")
+        self.sample_rate = rate
+        self.output_names = _names(self.output_names, self.n_outputs, "y", "output")
+        self.input_names = _names(self.input_names, self.n_inputs, "u", "input")
+
+    @property
+    def n_samples(self) -> int:
+        """Number of samples per channel."""
+        return int(self.outputs.shape[0])
+
+    @property
+    def n_outputs(self) -> int:
+        """Number of response channels."""
+        return int(self.outputs.shape[1])
+
+    @property
+    def n_inputs(self) -> int:
+        """Number of force channels (0 for output-only data)."""
+        return 0 if self.inputs is None else int(self.inputs.shape[1])
+
+    @property
+    def duration(self) -> float:
+        """Length of the record in seconds (``n_samples / sample_rate``)."""
+        return self.n_samples / self.sample_rate
+
+
+def _as_channels(values: Any, label: str) -> np.ndarray:
+    """``values`` as a float array of shape (n_samples, n_channels)."""
+    arr = np.asarray(values, dtype=float)
+    if arr.ndim == 1:
+        arr = arr[:, None]
+    if arr.ndim != 2:
+        raise ValueError(f"{label} must be (n_samples, n_channels), got shape {arr.shape}")
+    if arr.shape[0] == 0 or arr.shape[1] == 0:
+        raise ValueError(f"{label} have no sample or no channel (shape {arr.shape})")
+    return arr
+
+
+def _names(names: list[str], n: int, prefix: str, side: str) -> list[str]:
+    """The given channel names (checked to number ``n``), or ``prefix1..prefixn``."""
+    if not names:
+        return [f"{prefix}{i + 1}" for i in range(n)]
+    names = [str(s) for s in names]
+    if len(names) != n:
+        raise ValueError(f"{len(names)} {side} names for {n} {side} channels")
+    return names
