@@ -225,7 +225,7 @@ def scan(
         orders, misfit = order.misfit_scan(
             z, H, planned, basis, weights=weights, stop_after=2 * n_peaks + 40
         )
-        if orders.size < planned.size or stage >= n_max:
+        if orders.size < planned.size or stage >= n_max or order.plateaued(orders, misfit):
             return orders, misfit
         stage = min(n_max, 2 * stage)
 

@@ -103,10 +103,16 @@ def misfit_scan(
         A, C = subspace.shift_invariance(O[:, :n], ny, basis)
         B, D = subspace.estimate_bd(z[sub], H[sub], A, C, weights=w_sub)
         out.append(log_misfit(subspace.frequency_response(A, B, C, D, z[sub]), H[sub]))
-        if stop_after is not None and n >= stop_after:
-            past = np.asarray(orders[: i + 1]) <= n - patience
-            if past.any() and min(out[i + 1 - int(np.count_nonzero(~past)) :]) > 0.9 * min(
-                np.asarray(out)[past]
-            ):
-                break
+        if stop_after is not None and n >= stop_after and plateaued(orders[: i + 1], out, patience):
+            break
     return np.asarray(orders[: len(out)]), np.asarray(out)
+
+
+def plateaued(orders: np.ndarray, misfit, patience: int = 24) -> bool:
+    """Whether the best misfit has not improved by 10 % over the last ``patience`` states."""
+    orders = np.asarray(orders)
+    misfit = np.asarray(misfit, dtype=float)
+    past = orders <= orders[-1] - patience
+    if not past.any() or past.all():
+        return False
+    return bool(np.min(misfit[~past]) > 0.9 * np.min(misfit[past]))

@@ -123,29 +123,34 @@ def orthonormal_basis(z: np.ndarray, q: int) -> RowBasis:
     """Polynomials orthonormal on the data points in the real-stacked inner product.
 
     Arnoldi (Stieltjes) process with the inner product ``<a, b> = Re sum_k a_k conj(b_k)``
-    and re-orthogonalisation; real coefficients keep the real stacking valid.
+    and re-orthogonalisation; real coefficients keep the real stacking valid. Computed on
+    the real-stacked values ``[Re p, Im p]`` so that every step is a BLAS product.
     """
     N = z.size
-    P = np.empty((q, N), dtype=complex)
+    P = np.empty((q, 2 * N))  # [Re p_i, Im p_i]
     shift = np.zeros((q, q - 1))
     p0 = 1.0 / np.sqrt(N)
-    P[0] = p0
+    P[0, :N], P[0, N:] = p0, 0.0
+    zr, zi = z.real, z.imag
     for j in range(q - 1):
-        w = z * P[j]
+        re, im = P[j, :N], P[j, N:]
+        w = np.concatenate([zr * re - zi * im, zr * im + zi * re])  # z p_j
         for _ in range(2):
-            h = (P[: j + 1].conj() @ w).real
-            w = w - h @ P[: j + 1]
+            h = P[: j + 1] @ w
+            w -= h @ P[: j + 1]
             shift[: j + 1, j] += h
         nrm = np.linalg.norm(w)
         shift[j + 1, j] = nrm
         P[j + 1] = w / nrm
-    return RowBasis(values=P, shift=shift, p0=p0, monomial=False)
+    return RowBasis(values=P[:, :N] + 1j * P[:, N:], shift=shift, p0=p0, monomial=False)
 
 
 def _monomial_gram_cond(z: np.ndarray, q: int) -> float:
-    d = np.arange(q)
-    tu = np.cos(np.angle(z)[None, None, :] * (d[:, None, None] - d[None, :, None])).sum(-1)
-    return float(np.linalg.cond(tu))
+    """Condition number of ``Re sum_k z_k^(i-j)`` (symmetric Toeplitz, built from ``q`` sums)."""
+    from scipy.linalg import toeplitz
+
+    col = np.cos(np.arange(q)[:, None] * np.angle(z)[None, :]).sum(axis=1)
+    return float(np.linalg.cond(toeplitz(col)))
 
 
 def row_basis(z: np.ndarray, q: int, kind: str = "auto") -> RowBasis:
@@ -363,7 +368,7 @@ def schur_from_data(
             P = P * np.sqrt(np.asarray(weights, float)[sl])[None, :]
         U, Y = data_matrices(P, H[sl])
         Z = np.vstack([U, Y])
-        G += (Z @ Z.conj().T).real
+        G += Z.real @ Z.real.T + Z.imag @ Z.imag.T
     return _schur(G[: q * nu, : q * nu], G[q * nu :, : q * nu], G[q * nu :, q * nu :])
 
 
@@ -431,7 +436,11 @@ def observability(
     if method not in ("auto", "gram", "qr"):
         raise ValueError(f"unknown method {method!r}")
     if method in ("auto", "gram"):
-        O, sv = observability_from_schur(schur_from_data(basis, H, weights), n)
+        if basis.monomial:  # block Toeplitz: O(N q ny^2) sums beat forming X X^T
+            S = schur_complement(gram_sums(basis, H, weights))
+        else:
+            S = schur_from_data(basis, H, weights)
+        O, sv = observability_from_schur(S, n)
         if method == "gram" or gram_resolves(sv):
             return O, sv, "gram"
     O, sv = observability_from_l22(projected_output_qr(basis, H, weights), n)
@@ -537,26 +546,39 @@ def estimate_bd(
 
 
 def _estimate_bd_stacked(
-    z: np.ndarray, H: np.ndarray, A: np.ndarray, C: np.ndarray, with_d: bool, c: np.ndarray
+    z: np.ndarray,
+    H: np.ndarray,
+    A: np.ndarray,
+    C: np.ndarray,
+    with_d: bool,
+    c: np.ndarray,
+    chunk: int = 512,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`estimate_bd` by the stacked real least-squares problem (robust, slower)."""
+    """:func:`estimate_bd` by the stacked real least-squares problem (robust, slower).
+
+    ``Phi_k = C (z_k I - A)^-1`` comes from solves (no eigenvectors), and the problem is
+    reduced by an incremental QR over chunks of lines, so memory stays bounded.
+    """
     N, ny, nu = H.shape
     n = A.shape[0]
-    # Phi_k = C (z_k I - A)^-1, by solves (no eigenvectors)
+    p = n + (ny if with_d else 0)
     eye = np.eye(n)
-    phi = np.stack([np.linalg.solve((zk * eye - A).T, C.T).T for zk in z])  # (N, ny, n)
-    cols = [phi.reshape(N * ny, n)]
-    if with_d:
-        cols.append(np.tile(np.eye(ny), (N, 1)).astype(complex))
-    reg = np.hstack(cols)
-    rhs = H.reshape(N * ny, nu)
-    root = np.repeat(np.sqrt(c), ny)[:, None]
-    reg, rhs = reg * root, rhs * root
-    reg_r = np.vstack([reg.real, reg.imag])
-    rhs_r = np.vstack([rhs.real, rhs.imag])
-    norms = np.linalg.norm(reg_r, axis=0)
+    R = np.zeros((0, p + nu))
+    for start in range(0, N, chunk):
+        sl = slice(start, min(N, start + chunk))
+        phi = np.stack([np.linalg.solve((zk * eye - A).T, C.T).T for zk in z[sl]])
+        k = phi.shape[0]
+        cols = [phi.reshape(k * ny, n)]
+        if with_d:
+            cols.append(np.tile(np.eye(ny), (k, 1)).astype(complex))
+        block = np.hstack(cols + [H[sl].reshape(k * ny, nu)])
+        block = block * np.repeat(np.sqrt(c[sl]), ny)[:, None]
+        stacked = np.vstack([R, block.real, block.imag])
+        R = sla.qr(stacked, mode="r", check_finite=False)[0][: p + nu]
+    Rxx, Rxy = R[:p, :p], R[:p, p:]
+    norms = np.linalg.norm(Rxx, axis=0)
     norms[norms == 0] = 1.0
-    sol = sla.lstsq(reg_r / norms, rhs_r, lapack_driver="gelsy", check_finite=False)[0]
+    sol = sla.lstsq(Rxx / norms, Rxy, lapack_driver="gelsy", check_finite=False)[0]
     sol = sol / norms[:, None]
     return sol[:n], (sol[n:] if with_d else np.zeros((ny, nu)))
 

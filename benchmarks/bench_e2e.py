@@ -1,0 +1,549 @@
+"""Benchmark: end-to-end ``automodal identify`` on the command line, interpreter start included.
+
+Cases (each a simulated test with known modes, written by ``automodal simulate``; the
+simulation is not timed):
+
+* ``a``: 6-DOF chain, 6 outputs, 1 input, 1000 lines, 1 % noise;
+* ``b``: 8 x 10 grid of masses (80 DOFs), 40 outputs, 3 inputs, 3000 lines, 1 % noise;
+* ``c``: roving hammer: 9-DOF chain, 1 accelerometer (DOF 5), 9 hit points, 51 201 lines.
+
+For each case the script runs ``automodal identify FILE`` (default settings: 100 bootstrap
+replicates, seed 0) as a child process ``--repeat`` times and reports the minimum wall time
+(``time.perf_counter`` around the whole child, so interpreter start, imports and file
+reading count) and the child's peak resident set size (``ru_maxrss`` from ``os.wait4`` on
+that child: the largest of the child and its reaped worker processes, not their sum). The
+physical modes of the printed table are matched one-to-one to the true modes (within 1 % in
+frequency).
+
+Extra figures:
+
+* **Replicates against one identification** (cases a and b): in this process, the pipeline's
+  own preparation (band, reciprocity, channel scaling, line weights) is repeated, and
+  ``automodal.pipeline.run_replicates`` (the 100 replicates, with the pipeline's arguments) is
+  timed against one ``automodal.core.subspace.identify`` on the full data at the reference
+  order and block rows that ``automodal.pipeline.identify`` reports in ``result.orders``.
+* **Peer**: the FRFs of case a through sdypy-EMA's LSCF (``pip install -e '.[bench]'``), in a
+  fresh interpreter, from FRF arrays (read from a ``.npz``) to poles selected with
+  ``select_closest_poles``. sdypy-EMA needs a person to pick the poles on a stability chart;
+  here it is handed the true natural frequencies (rounded to 3 significant digits) instead,
+  which is more help than automodal gets.
+
+Run ``python benchmarks/bench_e2e.py --help`` for the options.
+"""
+
+from __future__ import annotations
+
+# Only the standard library at module level: the same file is the sdypy-EMA child process,
+# whose import time is part of what is measured.
+import argparse
+import datetime
+import json
+import os
+import platform
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+# ---------------------------------------------------------------------------- settings
+
+CASES = {
+    "a": {
+        "label": "a: 6-DOF chain",
+        "simulate": ["--system", "chain", "--dof", "6", "--outputs", "all", "--inputs", "6",
+                     "--lines", "1000", "--noise", "0.01", "--seed", "1"],
+    },
+    "b": {
+        "label": "b: 8x10 grid",
+        "simulate": ["--system", "grid", "--grid", "8", "10", "--outputs", "1-40",
+                     "--inputs", "1,40,80", "--lines", "3000", "--noise", "0.01",
+                     "--seed", "1"],
+    },
+    "c": {
+        "label": "c: roving hammer, 9-DOF chain",
+        "simulate": ["--system", "chain", "--dof", "9", "--outputs", "5", "--inputs", "1-9",
+                     "--lines", "51201", "--quantity", "acceleration", "--noise", "0.01",
+                     "--seed", "1"],
+    },
+}
+RATIO_CASES = ("a", "b")  # replicates against one identification
+PEER_CASE = "a"  # sdypy-EMA comparison
+MATCH_TOL = 0.01  # relative frequency tolerance of a found mode
+N_BOOTSTRAP = 100  # automodal's default, and what is timed
+
+# sdypy-EMA's settings for the peer case
+SDYPY_POL_ORDER_HIGH = 60  # the value of sdypy-EMA's documented example
+SDYPY_F_WINDOW_HZ = 5.0
+"""``select_closest_poles`` refines each guess within windows of ``f_window // i`` Hz (then
+2 Hz). Its default 50 Hz suits kHz data; on case a (modes 3.8-30.9 Hz) it pulled the picks
+onto wrong poles, so a window of 5 Hz (last window +-2 Hz, below the 2.7 Hz mode spacing)
+is passed: one more choice a person makes for sdypy-EMA."""
+
+
+# ---------------------------------------------------------------------------- helpers
+
+
+def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
+    ap = argparse.ArgumentParser(
+        description="Time `automodal identify` end to end (interpreter start included) on "
+        "three simulated tests, the bootstrap against one identification, and sdypy-EMA's "
+        "LSCF on case a; print Markdown tables."
+    )
+    ap.add_argument("--repeat", type=int, default=3,
+                    help="runs per measurement; the minimum wall time is reported (default 3)")
+    ap.add_argument("--cases", default="a,b,c",
+                    help="comma-separated subset of a,b,c (default a,b,c)")
+    ap.add_argument("--out", metavar="FILE.md", help="also write the report to this file")
+    ap.add_argument("--workdir", metavar="DIR",
+                    help="where the simulated tests are written (default: a temporary folder, "
+                    "removed at the end)")
+    ap.add_argument("--sdypy-child", metavar="NPZ", help=argparse.SUPPRESS)
+    args = ap.parse_args(argv)
+    args.cases = [c.strip() for c in args.cases.split(",") if c.strip()]
+    bad = [c for c in args.cases if c not in CASES]
+    if bad:
+        ap.error(f"unknown case(s) {', '.join(bad)}: choose from a, b, c")
+    if args.repeat < 1:
+        ap.error("--repeat must be at least 1")
+    return args
+
+
+def automodal_cmd() -> list[str]:
+    """The ``automodal`` console script if it is on PATH, else ``python -m automodal``."""
+    exe = shutil.which("automodal")
+    return [exe] if exe else [sys.executable, "-m", "automodal"]
+
+
+def run_child(cmd: list[str], cwd: str | Path | None = None) -> dict:
+    """Run ``cmd`` to completion; wall time, the child's peak RSS (MB), stdout, stderr.
+
+    The child is reaped with ``os.wait4``, whose resource usage belongs to that child alone
+    (``ru_maxrss``: KiB on Linux, the larger of the child and its reaped descendants).
+    """
+    with tempfile.TemporaryFile() as out, tempfile.TemporaryFile() as err:
+        t0 = time.perf_counter()
+        proc = subprocess.Popen(cmd, stdout=out, stderr=err, stdin=subprocess.DEVNULL, cwd=cwd)
+        _, status, usage = os.wait4(proc.pid, 0)
+        wall = time.perf_counter() - t0
+        proc.returncode = os.waitstatus_to_exitcode(status)
+        out.seek(0)
+        err.seek(0)
+        stdout = out.read().decode(errors="replace")
+        stderr = err.read().decode(errors="replace")
+    if proc.returncode != 0:
+        raise RuntimeError(
+            f"{' '.join(cmd)} exited with {proc.returncode}:\n{stderr[-2000:]}"
+        )
+    kib = usage.ru_maxrss if sys.platform != "darwin" else usage.ru_maxrss / 1024
+    return {"wall": wall, "peak_mb": kib / 1024.0, "stdout": stdout, "stderr": stderr}
+
+
+def repeat_child(cmd: list[str], repeat: int, cwd: str | Path | None = None) -> dict:
+    """``repeat`` runs of ``cmd``: minimum wall time, all wall times, largest peak RSS."""
+    runs = [run_child(cmd, cwd) for _ in range(repeat)]
+    best = min(runs, key=lambda r: r["wall"])
+    return {
+        "wall": best["wall"],
+        "walls": [r["wall"] for r in runs],
+        "peak_mb": max(r["peak_mb"] for r in runs),
+        "stdout": best["stdout"],
+        "stderr": best["stderr"],
+    }
+
+
+def timed_min(fn, repeat: int) -> tuple[float, float, object]:
+    """Minimum and first wall time of ``repeat`` calls of ``fn``, and its last value."""
+    times, value = [], None
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        value = fn()
+        times.append(time.perf_counter() - t0)
+    return min(times), times[0], value
+
+
+ROW = re.compile(r"^\s*(\d+)\s+([0-9.eE+-]+)\s+±\s+\S+\s+\S+\s+±\s+\S+\s+(\S+)\s+(\S+)\s+(\d+)")
+
+
+def physical_frequencies(table: str) -> tuple[list[float], int]:
+    """Frequencies of the rows marked ``physical`` in ``automodal identify``'s table, and the
+    number of rows."""
+    freqs, rows = [], 0
+    for line in table.splitlines():
+        m = ROW.match(line)
+        if not m:
+            continue
+        rows += 1
+        if m.group(4) == "physical":
+            freqs.append(float(m.group(2)))
+    return freqs, rows
+
+
+def match_modes(found: list[float], true: list[float], tol: float = MATCH_TOL) -> tuple[int, int]:
+    """One-to-one matches of ``found`` to ``true`` frequencies within ``tol`` (relative),
+    closest pairs first; returns (true modes matched, found modes left over)."""
+    pairs = sorted(
+        (abs(f - t) / t, i, j)
+        for i, f in enumerate(found)
+        for j, t in enumerate(true)
+        if abs(f - t) <= tol * t
+    )
+    used_f, used_t = set(), set()
+    for _, i, j in pairs:
+        if i not in used_f and j not in used_t:
+            used_f.add(i)
+            used_t.add(j)
+    return len(used_t), len(found) - len(used_f)
+
+
+def load_average() -> str:
+    try:
+        return "{:.2f} {:.2f} {:.2f}".format(*os.getloadavg())
+    except OSError:
+        return "n/a"
+
+
+def blas_line() -> str:
+    """numpy version and its BLAS, in one line."""
+    import numpy as np
+
+    parts = [f"numpy {np.__version__}"]
+    try:
+        from threadpoolctl import threadpool_info
+
+        for info in threadpool_info():
+            if info.get("user_api") == "blas":
+                parts.append(
+                    f"{info.get('internal_api')} {info.get('version')}"
+                    f" ({info.get('architecture')}, {info.get('threading_layer')},"
+                    f" {info.get('num_threads')} threads)"
+                )
+    except ImportError:  # pragma: no cover - threadpoolctl comes with scikit-learn
+        parts.append("BLAS: threadpoolctl not installed")
+    env = [f"{k}={os.environ[k]}" for k in ("OPENBLAS_CORETYPE", "OPENBLAS_NUM_THREADS",
+                                            "OMP_NUM_THREADS") if k in os.environ]
+    if env:
+        parts.append("env " + " ".join(env))
+    return "; ".join(parts)
+
+
+def git_state() -> str:
+    root = Path(__file__).resolve().parent.parent
+    try:
+        head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=root,
+                              capture_output=True, text=True, check=True).stdout.strip()
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"],
+                               cwd=root, capture_output=True, text=True,
+                               check=True).stdout.split("\n")
+        changed = [ln[3:] for ln in dirty if ln.strip()]
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
+    return head + (f" with uncommitted changes in {', '.join(changed)}" if changed else "")
+
+
+def fmt_s(x: float) -> str:
+    return f"{x:.2f}" if x >= 0.1 else f"{x * 1000:.1f} ms"
+
+
+# ---------------------------------------------------------------------------- the parts
+
+
+def simulate_case(key: str, workdir: Path) -> tuple[Path, list[str], list[float]]:
+    """Write case ``key``'s FRF file (untimed); its path, the command, the true frequencies."""
+    path = workdir / f"{key}.h5"
+    cmd = automodal_cmd() + ["simulate", str(path), *CASES[key]["simulate"], "-q"]
+    run_child(cmd)
+    modes = json.loads(path.with_suffix(".modes.json").read_text())
+    return path, cmd, [float(f) for f in modes["frequency_hz"]]
+
+
+def bench_cli(key: str, path: Path, true_f: list[float], repeat: int) -> dict:
+    """``automodal identify FILE`` as a child process, ``repeat`` times."""
+    cmd = automodal_cmd() + ["identify", str(path)]
+    load_before = load_average()
+    res = repeat_child(cmd, repeat)
+    phys, rows = physical_frequencies(res["stdout"])
+    matched, extra = match_modes(phys, true_f)
+    summary = res["stdout"].strip().splitlines()[-1] if res["stdout"].strip() else ""
+    return {
+        "cmd": cmd, "wall": res["wall"], "walls": res["walls"], "peak_mb": res["peak_mb"],
+        "n_physical": len(phys), "n_rows": rows, "matched": matched, "extra": extra,
+        "n_true": len(true_f), "summary": summary, "load": load_before,
+    }
+
+
+def bench_replicates(path: Path, repeat: int) -> dict:
+    """``run_replicates`` (100 replicates) against one full-data ``subspace.identify`` at
+    the reference order, with the arguments ``automodal.pipeline.identify`` uses."""
+    import numpy as np
+
+    from automodal import pipeline
+    from automodal.core import bootstrap, subspace
+    from automodal.core.bilinear import default_scale, to_unit_circle
+    from automodal.io.frf_file import read_frf
+
+    data = read_frf(str(path))
+    settings = pipeline.Settings(seed=0, n_bootstrap=N_BOOTSTRAP)
+    t_pipe, _, result = timed_min(lambda: pipeline.identify(data, settings), 1)
+    n_hi = int(result.orders["reference"])
+    q = int(result.orders["block_rows"])
+
+    # the pipeline's preparation, step by step (pipeline.identify)
+    warnings: list[str] = []
+    freq, H, _ = pipeline.select_band(data, settings.band_hz, warnings)
+    H, _ = pipeline.apply_reciprocity(H, warnings)
+    N, ny, nu = H.shape
+    omega = 2.0 * np.pi * freq
+    T = default_scale(omega[0], omega[-1])
+    z = to_unit_circle(omega, T)
+    scales = subspace.channel_scales(H)
+    Hs = H / scales[None, :, None]
+    lw = subspace.envelope_weights(Hs)
+    assert q == subspace.block_rows(n_hi, ny), "block rows differ from the pipeline's"
+    basis = subspace.row_basis(z, q)
+    rng = np.random.default_rng(settings.seed)
+    weights = bootstrap.line_weights(N, settings.n_bootstrap, rng) * lw[None, :]
+
+    t_one, t_one_first, _ = timed_min(
+        lambda: subspace.identify(z, Hs, n_hi, T, q=q, weights=lw, estimate_bd_=True), repeat
+    )
+    t_rep, t_rep_first, reps = timed_min(
+        lambda: pipeline.run_replicates(basis, Hs, n_hi, T, weights, settings.jobs), repeat
+    )
+    t_rep1, _, _ = timed_min(
+        lambda: pipeline.run_replicates(basis, Hs, n_hi, T, weights, 1), repeat
+    )
+    flops = pipeline._replicate_flops(basis.q * ny, n_hi) * settings.n_bootstrap
+    jobs = pipeline._n_jobs(settings.jobs, settings.n_bootstrap, flops)
+    return {
+        "N": N, "ny": ny, "nu": nu, "n_hi": n_hi, "q": q, "basis": result.orders["basis"],
+        "t_pipeline": t_pipe, "runtime_s": result.runtime_s,
+        "t_one": t_one, "t_one_first": t_one_first,
+        "t_rep": t_rep, "t_rep_first": t_rep_first, "t_rep_1job": t_rep1, "jobs": jobs,
+        "n_qr": sum(r.path == "qr" for r in reps),
+    }
+
+
+def write_peer_input(path: Path, true_f: list[float], workdir: Path) -> Path:
+    """The FRFs of ``path`` as sdypy-EMA wants them (locations x lines), in a ``.npz``."""
+    import numpy as np
+
+    from automodal.io.frf_file import read_frf
+
+    data = read_frf(str(path))
+    keep = data.frequency > 0
+    frf = data.frf[keep][:, :, 0].T  # single input: (outputs, lines)
+    approx = np.array([float(f"{f:.3g}") for f in true_f])
+    npz = workdir / f"{path.stem}_sdypy.npz"
+    np.savez(npz, frf=frf, freq=data.frequency[keep], approx=approx,
+             quantity=np.array(data.quantity))
+    return npz
+
+
+def sdypy_child(npz: str) -> None:
+    """The peer run in a fresh interpreter: FRF arrays -> LSCF poles -> closest poles."""
+    t0 = time.perf_counter()
+    import warnings
+
+    import numpy as np
+    from sdypy import EMA
+
+    t_import = time.perf_counter() - t0
+    d = np.load(npz)
+    frf, freq, approx = d["frf"], d["freq"], d["approx"]
+    form = {"displacement": "receptance", "velocity": "mobility",
+            "acceleration": "accelerance"}[str(d["quantity"])]
+    t1 = time.perf_counter()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        model = EMA.Model(frf=frf, freq=freq, lower=float(freq[0]), upper=float(freq[-1]),
+                          pol_order_high=SDYPY_POL_ORDER_HIGH, frf_form=form)
+        model.get_poles(method="lscf", show_progress=False)
+        t2 = time.perf_counter()
+        model.select_closest_poles(list(approx), f_window=SDYPY_F_WINDOW_HZ)
+    t3 = time.perf_counter()
+    print(json.dumps({
+        "import_s": t_import, "poles_s": t2 - t1, "select_s": t3 - t2, "compute_s": t3 - t1,
+        "nat_freq": [float(x) for x in model.nat_freq],
+        "nat_xi": [float(x) for x in model.nat_xi],
+        "version": getattr(EMA, "__version__", "?"),
+    }))
+
+
+def bench_peer(npz: Path, true_f: list[float], repeat: int) -> dict:
+    cmd = [sys.executable, str(Path(__file__).resolve()), "--sdypy-child", str(npz)]
+    res = repeat_child(cmd, repeat)
+    info = json.loads(res["stdout"].strip().splitlines()[-1])
+    nat = info["nat_freq"]
+    err = max(abs(f - t) / t for f, t in zip(nat, true_f)) if nat else float("nan")
+    matched, extra = match_modes(nat, true_f)
+    return {"cmd": cmd, "wall": res["wall"], "walls": res["walls"], "peak_mb": res["peak_mb"],
+            "info": info, "max_rel_err": err, "matched": matched, "extra": extra}
+
+
+# ---------------------------------------------------------------------------- report
+
+
+def render(meta: dict, cli: dict, ratios: dict, peer: dict | None) -> str:
+    out = ["# automodal end-to-end benchmark", ""]
+    out += [f"* date: {meta['date']}", f"* machine: {meta['machine']}; nproc {meta['nproc']}",
+            f"* Python {meta['python']}; {meta['blas']}",
+            f"* automodal: git {meta['git']}",
+            f"* repeats: {meta['repeat']} (minimum wall time; peak RSS: largest of the runs)",
+            f"* load average (1, 5, 15 min) at start: {meta['load_start']};"
+            f" at end: {meta.get('load_end', 'n/a')}", ""]
+    if meta["simulate"]:
+        out += ["Test files (not timed):", "", "```sh"]
+        out += [" ".join(c) for c in meta["simulate"]]
+        out += ["```", ""]
+    if cli:
+        out += ["## `automodal identify FILE` (child process, interpreter start included)", ""]
+        out += ["| case | lines | outputs | inputs | wall s | peak MB | physical modes found"
+                " / true modes | physical rows not matching a true mode | all runs, s |",
+                "|---|---:|---:|---:|---:|---:|---:|---:|---|"]
+        for key, r in cli.items():
+            c = CASES[key]
+            out.append(
+                f"| {c['label']} | {meta['dims'][key][0]} | {meta['dims'][key][1]} |"
+                f" {meta['dims'][key][2]} | {r['wall']:.2f} | {r['peak_mb']:.0f} |"
+                f" {r['matched']} / {r['n_true']} | {r['extra']} |"
+                f" {', '.join(f'{w:.2f}' for w in r['walls'])} |"
+            )
+        out += ["", "Commands (default settings: 100 replicates, seed 0, all cores):", "", "```sh"]
+        out += [" ".join(r["cmd"]) for r in cli.values()]
+        out += ["```", "", "Summary lines:", ""]
+        out += [f"* {k}: `{r['summary']}` (load before: {r['load']})" for k, r in cli.items()]
+        out += ["", f"'found' = a row marked physical within {MATCH_TOL:.0%} of a true natural"
+                " frequency (one-to-one). Peak MB = ru_maxrss of the identify process from"
+                " os.wait4 (MiB), the larger of it and its reaped worker processes.", ""]
+    if ratios:
+        out += ["## 100 replicates against one full-data identification", ""]
+        out += ["| case | N | ny | nu | n_ref | q | one `subspace.identify` s |"
+                " `run_replicates` s (jobs) | ratio | `run_replicates` 1 job s | ratio 1 job |"
+                " first call (cold) s: identify / replicates | whole `pipeline.identify` s |",
+                "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|---:|"]
+        for key, r in ratios.items():
+            out.append(
+                f"| {key} | {r['N']} | {r['ny']} | {r['nu']} | {r['n_hi']} | {r['q']} |"
+                f" {fmt_s(r['t_one'])} | {fmt_s(r['t_rep'])} ({r['jobs']}) |"
+                f" **{r['t_rep'] / r['t_one']:.2f}** | {fmt_s(r['t_rep_1job'])} |"
+                f" {r['t_rep_1job'] / r['t_one']:.2f} |"
+                f" {fmt_s(r['t_one_first'])} / {fmt_s(r['t_rep_first'])} |"
+                f" {r['t_pipeline']:.2f} |"
+            )
+        out += ["", "Target: 100 replicates <= 3x one full-data identification at the reference"
+                " order. One identification = `subspace.identify(z, Hs, n_ref, T, q=q,"
+                " weights=lw, estimate_bd_=True)` (row basis, projection, A/C, B/D);"
+                " replicates = `pipeline.run_replicates(basis, Hs, n_ref, T, weights, jobs)`"
+                " with the pipeline's basis and weights (Gram sums + 100 small problems), jobs"
+                " as the pipeline chooses them (`jobs=None`) and with 1 job. Minimum of the"
+                " repeats, in this process (warm imports; joblib's workers are reused after"
+                " the first call, which the 'cold' column includes).", ""]
+        for key, r in ratios.items():
+            out.append(f"* {key}: basis {r['basis']}; replicates on the QR fall-back path:"
+                       f" {r['n_qr']} of {N_BOOTSTRAP}")
+        out.append("")
+    if peer:
+        info = peer["info"]
+        am = cli.get(PEER_CASE)
+        out += ["## Peer: sdypy-EMA LSCF on case a", ""]
+        out += [f"sdypy-EMA {info['version']}: `EMA.Model(frf, freq, lower=f[0], upper=f[-1],"
+                f" pol_order_high={SDYPY_POL_ORDER_HIGH}, frf_form=...)`, `get_poles('lscf')`,"
+                f" `select_closest_poles(approx, f_window={SDYPY_F_WINDOW_HZ:g})`, in a fresh"
+                " interpreter, FRF arrays read from a .npz. **sdypy-EMA cannot pick poles by"
+                " itself**: a person picks them on a stability chart; here it is given the"
+                " true natural frequencies rounded to 3 significant digits, and an f_window"
+                " chosen for this test (its default of 50 Hz picked wrong poles here).", ""]
+        out += ["| | wall s (child, interpreter start included) | peak MB | import s |"
+                " compute s (arrays to poles selected) | modes found / true |",
+                "|---|---:|---:|---:|---:|---:|"]
+        out.append(f"| sdypy-EMA | {peer['wall']:.2f} | {peer['peak_mb']:.0f} |"
+                   f" {info['import_s']:.2f} | {info['compute_s']:.2f}"
+                   f" (poles {info['poles_s']:.2f}, selection {info['select_s']:.2f}) |"
+                   f" {peer['matched']} / {len(meta['true'][PEER_CASE])} (given) |")
+        ar = ratios.get(PEER_CASE)
+        if am:
+            out.append(f"| automodal | {am['wall']:.2f} | {am['peak_mb']:.0f} | | "
+                       + (f"{ar['t_pipeline']:.2f} (`pipeline.identify`, in process)" if ar
+                          else "") + f" | {am['matched']} / {am['n_true']} (no help) |")
+            out += ["", f"**Ratio automodal / sdypy-EMA, wall time with interpreter start:"
+                    f" {am['wall']:.2f} s / {peer['wall']:.2f} s = "
+                    f"{am['wall'] / peer['wall']:.2f}**"]
+            if ar:
+                out.append(f"; compute only (arrays in memory): {ar['t_pipeline']:.2f} s /"
+                           f" {info['compute_s']:.2f} s = {ar['t_pipeline'] / info['compute_s']:.2f}")
+        out += ["", f"sdypy-EMA frequencies: {', '.join(f'{f:.4f}' for f in info['nat_freq'])}"
+                f" Hz (largest relative error {peer['max_rel_err']:.1e}); damping"
+                f" {', '.join(f'{100 * x:.3f}' for x in info['nat_xi'])} %.", "",
+                "Command: `" + " ".join(peer["cmd"]) + "`", ""]
+    return "\n".join(out)
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parse_args(argv)
+    if args.sdypy_child:
+        sdypy_child(args.sdypy_child)
+        return 0
+    tmp = None
+    if args.workdir:
+        workdir = Path(args.workdir)
+        workdir.mkdir(parents=True, exist_ok=True)
+    else:
+        tmp = tempfile.TemporaryDirectory(prefix="automodal_e2e_")
+        workdir = Path(tmp.name)
+    meta = {
+        "date": datetime.datetime.now().astimezone().strftime("%Y-%m-%d %H:%M %Z"),
+        "machine": f"{platform.machine()} {platform.processor() or platform.platform()}",
+        "nproc": os.cpu_count(), "python": platform.python_version(), "blas": blas_line(),
+        "git": git_state(), "repeat": args.repeat, "load_start": load_average(),
+        "simulate": [], "dims": {}, "true": {},
+    }
+    cli, ratios, peer = {}, {}, None
+    try:
+        paths = {}
+        for key in args.cases:
+            path, cmd, true_f = simulate_case(key, workdir)
+            paths[key] = path
+            meta["simulate"].append(cmd)
+            meta["true"][key] = true_f
+            from automodal.io.frf_file import read_frf
+
+            d = read_frf(str(path))
+            meta["dims"][key] = d.frf.shape
+        for key in args.cases:
+            print(f"[{time.strftime('%H:%M:%S')}] case {key}: automodal identify", flush=True)
+            cli[key] = bench_cli(key, paths[key], meta["true"][key], args.repeat)
+            r = cli[key]
+            print(f"    wall {r['wall']:.2f} s, peak {r['peak_mb']:.0f} MB,"
+                  f" {r['matched']}/{r['n_true']} found, {r['extra']} extra", flush=True)
+        for key in [k for k in args.cases if k in RATIO_CASES]:
+            print(f"[{time.strftime('%H:%M:%S')}] case {key}: replicates vs one identification",
+                  flush=True)
+            ratios[key] = bench_replicates(paths[key], args.repeat)
+            r = ratios[key]
+            print(f"    one {r['t_one']:.3f} s, replicates {r['t_rep']:.3f} s"
+                  f" -> ratio {r['t_rep'] / r['t_one']:.2f}", flush=True)
+        if PEER_CASE in args.cases:
+            print(f"[{time.strftime('%H:%M:%S')}] case {PEER_CASE}: sdypy-EMA", flush=True)
+            try:
+                npz = write_peer_input(paths[PEER_CASE], meta["true"][PEER_CASE], workdir)
+                peer = bench_peer(npz, meta["true"][PEER_CASE], args.repeat)
+            except RuntimeError as exc:
+                print(f"    sdypy-EMA failed (pip install -e '.[bench]'?): {exc}",
+                      file=sys.stderr)
+        meta["load_end"] = load_average()
+    finally:
+        if tmp is not None:
+            tmp.cleanup()
+    text = render(meta, cli, ratios, peer)
+    print()
+    print(text)
+    if args.out:
+        Path(args.out).write_text(text + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
