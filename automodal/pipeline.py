@@ -432,17 +432,19 @@ def identify(
     mu = np.concatenate([r.mu for r in reps]) if reps else np.zeros(0, complex)
     shapes = np.hstack([r.shapes for r in reps]) if reps else np.zeros((ny, 0), complex)
     o = moc_vectors(shapes, mu, q)
-    groups = clustering.split_stable_groups(
-        groups, o_ref, o, replicate, s.n_bootstrap, s.threshold
+    groups, capacity = clustering.split_stable_groups(
+        groups, o_ref, o, replicate, s.n_bootstrap, contribution, ref.poles, s.threshold
     )
-    refsub = clustering.reference_subspaces(o_ref, cand, o_real, groups)
+    refsub = clustering.reference_subspaces(o_ref, cand, o_real, groups, capacity)
 
     # -- clustering -----------------------------------------------------------------
     labels, rho = clustering.assign(o, replicate, refsub, s.threshold)
     labels, _ = clustering.trim(labels, o, poles, replicate, refsub.dims)
 
     modes = _summarise(labels, rho, poles, shapes, replicate, refsub, ref, scales, s, contribution)
-    physical_ref = sorted({int(i) for m in modes if m.physical for i in refsub.groups[m.cluster]})
+    physical_ref = sorted(
+        {int(i) for m in modes if m.physical for i in refsub.groups[m.cluster][: m.cluster_dim]}
+    )
     H_syn = synthesize(A, Bd, Cs, Ds, z, np.array(physical_ref, dtype=int)) * scales[None, :, None]
     if reciprocal:
         H_syn, H_meas = H_syn.transpose(0, 2, 1), H.transpose(0, 2, 1)
@@ -593,9 +595,8 @@ def _summarise(
     for c in clusters:
         idx = np.flatnonzero(labels == c)
         rank = clustering.rank_within_replicate(poles[idx], replicate[idx])
-        group = refsub.groups[c]
-        ref_poles = ref.poles[group][np.argsort(np.abs(ref.poles[group]))]
-        centre = ref_poles[np.minimum(rank, ref_poles.size - 1)]
+        group = refsub.groups[c][: refsub.dims[c]]  # the representatives, in rank order
+        centre = ref.poles[group][np.minimum(rank, group.size - 1)]
         rel = np.abs(poles[idx] - centre) / np.abs(centre)
         feats.append(
             physicalness.cluster_features(
@@ -605,13 +606,16 @@ def _summarise(
         )
         per_cluster.append((idx, rank))
     phys = physicalness.physicalness(np.array(feats)) if feats else np.zeros(0)
+    # a cluster whose members are mostly unstable is never physical (method.md, 1.7)
+    for i, (idx, _) in enumerate(per_cluster):
+        if np.median(poles[idx].real) >= 0:
+            phys[i] = 0.0
 
     shapes_data = normalise_shapes(shapes_scaled * scales[:, None])
     ref_shapes = normalise_shapes(ref.shapes * scales[:, None])
     modes: list[IdentifiedMode] = []
     for c, (idx, rank), f, p in zip(clusters, per_cluster, feats, phys):
-        group = refsub.groups[c]
-        group = group[np.argsort(np.abs(ref.poles[group]))]
+        group = refsub.groups[c][: refsub.dims[c]]
         for r in range(int(refsub.dims[c])):
             sel = idx[rank == r]
             if sel.size == 0:

@@ -48,12 +48,17 @@ def physical_candidates(
     )
 
 
-def coalescent_groups(poles: np.ndarray, alpha: float = 1.0) -> list[np.ndarray]:
-    """Group poles closer than ``alpha`` half-power bandwidths (union of pairs).
+def coalescent_groups(
+    poles: np.ndarray, alpha: float = 1.0, resolution: float = 0.0
+) -> list[np.ndarray]:
+    """Group poles closer than ``alpha`` half-power bandwidths, or than the frequency
+    resolution of the data (union of pairs).
 
     Poles ``i`` and ``j`` join when ``|l_i - l_j| < alpha * min(-Re l_i, -Re l_j)``: each
     lies within the other's half-power bandwidth. (With ``max`` a heavily damped noise
-    pole near a physical one swept it into a pair.)
+    pole near a physical one swept it into a pair.) Poles closer than ``resolution``
+    (rad/s, the line spacing) cannot be told apart by the data either and join too; the
+    bootstrap then decides what each group is (:func:`split_stable_groups`).
 
     Returns
     -------
@@ -72,7 +77,9 @@ def coalescent_groups(poles: np.ndarray, alpha: float = 1.0) -> list[np.ndarray]
         return i
 
     dist = np.abs(poles[:, None] - poles[None, :])
-    width = alpha * np.minimum(-poles.real[:, None], -poles.real[None, :])
+    width = np.maximum(
+        alpha * np.minimum(-poles.real[:, None], -poles.real[None, :]), resolution
+    )
     for i, j in zip(*np.nonzero(np.triu(dist < width, k=1))):
         ri, rj = root(int(i)), root(int(j))
         if ri != rj:
@@ -108,20 +115,26 @@ def split_stable_groups(
     o_boot: np.ndarray,
     replicate: np.ndarray,
     n_bootstrap: int,
+    strength: np.ndarray,
+    poles: np.ndarray,
     threshold: float = 0.8,
     min_union_only: float = 0.25,
     min_full: float = 0.5,
-) -> list[np.ndarray]:
-    """Keep a multi-mode group only where the bootstrap shows it is a repeated root.
+) -> tuple[list[np.ndarray], list[int]]:
+    """Decide, from the bootstrap, what a group of close reference poles is.
 
-    Two signs are required. (1) The replicates find the group's ``d`` modes: at least
-    ``min_full`` of them give ``d`` or more modes that correlate with the group's span
-    (``rho >= threshold``). (2) The single vectors are not unique: at least
-    ``min_union_only`` of the span-correlated modes correlate with the span but with none
-    of the group's single vectors (the eigenvectors of a repeated root wander between
-    replicates while the span stays fixed). Otherwise the group is split into singletons:
-    measured on simulated chains, the pole-distance rule alone paired a physical mode
-    with an over-fitting companion pole, which halved the mode's occurrence.
+    * **A repeated root** (kept, one cluster that takes ``d`` modes per replicate): at least
+      ``min_full`` of the replicates give ``d`` or more modes that correlate with the
+      group's span (``rho >= threshold``), and at least ``min_union_only`` of those modes
+      correlate with the span but with none of the single vectors (the eigenvectors of a
+      repeated root wander between replicates; the span does not).
+    * **Distinct modes** (split into singletons): the replicates give ``d`` modes, each
+      close to one single vector.
+    * **One mode described by several poles** (one cluster that takes one mode per
+      replicate, represented by the strongest pole): the replicates mostly give fewer
+      than ``d`` modes. Measured: the pole-distance rule alone paired physical modes with
+      over-fitting companion poles, which halved the mode's occurrence (simulated chains)
+      or split one mode into two physical clusters (LADISK beam, 958.53 and 958.57 Hz).
 
     Parameters
     ----------
@@ -135,15 +148,28 @@ def split_stable_groups(
         Replicate of each bootstrap mode.
     n_bootstrap : int
         Number of replicates.
+    strength : ndarray, shape (m,)
+        Modal contribution of each reference mode (chooses the representative).
+    poles : ndarray, shape (m,)
+        Reference poles (orders the members of a repeated root).
     threshold : float
         ``tau_1``.
     min_union_only, min_full : float
         The two fractions above.
+
+    Returns
+    -------
+    groups : list of ndarray
+        Each group's reference modes; its first ``capacity`` entries represent it.
+    capacity : list of int
+        Modes each replicate may give to the group.
     """
     out: list[np.ndarray] = []
+    capacity: list[int] = []
     for g in groups:
         if g.size < 2:
             out.append(g)
+            capacity.append(1)
             continue
         rho_union = subspace_correlation(orthonormal_basis(o_ref[:, g]), o_boot)
         rho_single = np.max(np.abs(o_ref[:, g].conj().T @ o_boot) ** 2, axis=0)
@@ -152,10 +178,15 @@ def split_stable_groups(
         full = np.count_nonzero(per_rep >= g.size) >= min_full * n_bootstrap
         union_only = np.count_nonzero(near & (rho_single < threshold))
         if full and union_only >= min_union_only * np.count_nonzero(near):
-            out.append(g)
-        else:
+            out.append(g[np.argsort(np.abs(poles[g]))])
+            capacity.append(int(g.size))
+        elif full:
             out.extend(np.array([i]) for i in g)
-    return out
+            capacity.extend([1] * int(g.size))
+        else:
+            out.append(g[np.argsort(-strength[g])])
+            capacity.append(1)
+    return out, capacity
 
 
 @dataclass
@@ -165,25 +196,33 @@ class ReferenceSubspaces:
     Attributes
     ----------
     groups : list of ndarray
-        Reference-mode indices of each cluster (into the reference :class:`ModeSet`).
+        Reference-mode indices of each cluster (into the reference :class:`ModeSet`); the
+        first ``capacity`` entries represent the cluster.
     bases : list of ndarray
         Orthonormal basis of each cluster's MOC vectors.
     noise_basis : ndarray
         Orthonormal basis of the noise modes' MOC vectors.
+    capacity : list of int
+        Modes a replicate may give to each cluster (its dimension as a mode set).
     """
 
     groups: list[np.ndarray]
     bases: list[np.ndarray]
     noise_basis: np.ndarray
+    capacity: list[int]
 
     @property
     def dims(self) -> np.ndarray:
-        """Dimension of each cluster subspace."""
-        return np.array([b.shape[1] for b in self.bases], dtype=int)
+        """Modes per replicate of each cluster (2 for a repeated pair)."""
+        return np.array(self.capacity, dtype=int)
 
 
 def reference_subspaces(
-    o_ref: np.ndarray, candidate: np.ndarray, o_noise_extra: np.ndarray, groups: list[np.ndarray]
+    o_ref: np.ndarray,
+    candidate: np.ndarray,
+    o_noise_extra: np.ndarray,
+    groups: list[np.ndarray],
+    capacity: list[int] | None = None,
 ) -> ReferenceSubspaces:
     """Cluster and noise subspaces.
 
@@ -197,10 +236,15 @@ def reference_subspaces(
         MOC vectors of the reference model's real poles (noise too).
     groups : list of ndarray
         Coalescent groups, as indices into the candidates' positions in ``o_ref``.
+    capacity : list of int, optional
+        Modes per replicate of each group (default: its number of members).
     """
     bases = [orthonormal_basis(o_ref[:, g]) for g in groups]
     noise = np.hstack([o_ref[:, ~candidate], o_noise_extra])
-    return ReferenceSubspaces(groups=groups, bases=bases, noise_basis=orthonormal_basis(noise))
+    cap = [int(g.size) for g in groups] if capacity is None else list(capacity)
+    return ReferenceSubspaces(
+        groups=groups, bases=bases, noise_basis=orthonormal_basis(noise), capacity=cap
+    )
 
 
 # ---------------------------------------------------------------------------------------
