@@ -291,7 +291,7 @@ def mode_shapes(
     """
     modes = _physical_modes(report)
     inp = report.get("input", {})
-    if xyz is None and inp.get("output_xyz") is not None:
+    if xyz is None and inp.get("output_xyz") is not None and not inp.get("reciprocity"):
         xyz = np.array(inp["output_xyz"], dtype=float)
     geometry = xyz is not None
     if geometry and modes:
@@ -314,7 +314,7 @@ def mode_shapes(
                            _direction_vectors(inp.get("output_directions"), shape.size))
         else:
             ax = fig.add_subplot(n_rows, n_cols, k + 1)
-            _draw_shape_bars(ax, shape, _channel_names(report, shape.size, 0)[0], k == 0)
+            _draw_shape_bars(ax, shape, _shape_channel_names(report, shape.size), k == 0)
         zeta = mode.get("damping_ratio")
         damping = f", ζ {100 * zeta:.2f} %" if _finite(zeta) else ""
         ax.set_title(f"mode {mode.get('id', k + 1)}: {_hz(mode['frequency_hz'])}{damping}",
@@ -671,6 +671,13 @@ def _channel_names(report: Mapping[str, Any], ny: int, nu: int) -> tuple[list[st
         return given[:n] if len(given) >= n else [f"{prefix}{i + 1}" for i in range(n)]
 
     return names("output_names", ny, "y"), names("input_names", nu, "u")
+
+
+def _shape_channel_names(report: Mapping[str, Any], n: int) -> list[str]:
+    """Names of the mode-shape entries: ``input.mode_shape_channels`` (the inputs when the
+    run used reciprocity), else the output names."""
+    given = [str(s) for s in report.get("input", {}).get("mode_shape_channels") or []]
+    return given[:n] if len(given) >= n else _channel_names(report, n, 0)[0]
 
 
 def _strongest_channels(H: np.ndarray, n: int) -> list[tuple[int, int]]:
