@@ -407,6 +407,8 @@ def identify(
         singular_values=sv,
     )
     ref = modes_of_discrete(A, Cs, T, Bd)
+    decay = float(data.attributes.get("window_decay_per_s", 0.0) or 0.0)
+    ref.poles = ref.poles + decay  # an exponential window moved every pole by -decay
     contribution = modal_contribution(ref, A, Bd, Cs, Ds)
     band_w = (float(omega[0]), float(omega[-1]))
     cand = clustering.physical_candidates(ref.poles, band_w, s.zeta_max)
@@ -428,7 +430,7 @@ def identify(
     )
     n_qr = sum(r.path == "qr" for r in reps)
     replicate = np.concatenate([np.full(len(r.poles), b) for b, r in enumerate(reps)]).astype(int)
-    poles = np.concatenate([r.poles for r in reps]) if reps else np.zeros(0, complex)
+    poles = np.concatenate([r.poles for r in reps]) + decay if reps else np.zeros(0, complex)
     mu = np.concatenate([r.mu for r in reps]) if reps else np.zeros(0, complex)
     shapes = np.hstack([r.shapes for r in reps]) if reps else np.zeros((ny, 0), complex)
     o = moc_vectors(shapes, mu, q)

@@ -29,6 +29,7 @@ if TYPE_CHECKING:
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure, SubFigure
 
+    from automodal.core.monitoring import History
     from automodal.pipeline import PoleTable
 
 __all__ = [
@@ -40,6 +41,7 @@ __all__ = [
     "pole_map",
     "save_figure",
     "save_figures",
+    "trend",
 ]
 
 FIGURE_NAMES = ("overview", "poles", "frf_fit", "physicalness", "mode_shapes")
@@ -368,6 +370,78 @@ def overview(
     else:
         physicalness_bars(report, fig=middle)
     mode_shapes(report, xyz, max_columns=columns, fig=subs.pop(0))
+    return fig
+
+
+def trend(history: History, *, fig: Figure | SubFigure | None = None) -> Figure | SubFigure:
+    """Frequency and damping of the tracked modes over time, with bootstrap bands.
+
+    Parameters
+    ----------
+    history : History
+        What :func:`automodal.core.monitoring.build_history` made (or
+        :func:`automodal.io.history.read_history` read).
+    fig : Figure or SubFigure, optional
+        Where to draw; default a new figure.
+
+    Returns
+    -------
+    Figure or SubFigure
+        Two axes sharing the time axis (UTC): above, each mode's frequency change from the
+        baseline in % with its bootstrap 95 % band and the alarm floor
+        ``±min_relative_shift`` dashed; below, the damping ratio in % with its band. Flagged
+        points are ringed in red (``gid="flagged"``), missing modes drawn as red crosses at
+        0 % (``gid="missing"``).
+    """
+    import datetime as dt
+
+    fig = _canvas(fig, (10.0, 6.5))
+    ax_f, ax_d = fig.subplots(2, 1, sharex=True)
+    times = [dt.datetime.fromisoformat(t.replace("Z", "+00:00")).replace(tzinfo=None)
+             for t in history.times]
+    x = np.array(times, dtype="datetime64[s]")
+    flagged_label, missing_label = "flagged", "missing"
+    for m in range(history.n_modes):
+        color = f"C{m % 10}"
+        fb = float(history.baseline_frequency_hz[m])
+        rel = 100.0 * (history.frequency_hz[:, m] - fb) / fb
+        band = 100.0 * (history.frequency_ci95_hz[:, m, :] - fb) / fb
+        zeta = 100.0 * history.damping_ratio[:, m]
+        zband = 100.0 * history.damping_ci95[:, m, :]
+        label = f"mode {int(history.mode_ids[m])} ({_hz(fb)})"
+        for ax, y, b in ((ax_f, rel, band), (ax_d, zeta, zband)):
+            ax.plot(x, y, "o-", color=color, ms=3, lw=1.0, label=label if ax is ax_f else None)
+            ax.fill_between(x, b[:, 0], b[:, 1], color=color, alpha=0.2, lw=0)
+            hit = history.mode_flagged[:, m] & np.isfinite(y)
+            if hit.any():
+                ax.scatter(x[hit], y[hit], s=70, facecolors="none", edgecolors="tab:red",
+                           linewidths=1.5, zorder=5, gid="flagged", label=flagged_label)
+                flagged_label = None
+        gone = history.missing[:, m]
+        if gone.any():
+            ax_f.scatter(x[gone], np.zeros(int(gone.sum())), marker="x", s=60, color="tab:red",
+                         zorder=5, gid="missing", label=missing_label)
+            missing_label = None
+    floor = 100.0 * history.thresholds.min_relative_shift
+    for level in (-floor, floor):
+        ax_f.axhline(level, color="0.5", ls="--", lw=0.8, zorder=0)
+    ax_f.axhline(0.0, color="0.75", lw=0.6, zorder=0)
+    ax_f.set_ylabel("frequency change (%)")
+    ax_d.set_ylabel("damping ratio (%)")
+    ax_d.set_xlabel("time (UTC); bands: bootstrap 95 % intervals; dashed: alarm floor")
+    if not history.n_modes:
+        ax_f.text(0.5, 0.5, "the baseline has no physical mode", ha="center", va="center",
+                  transform=ax_f.transAxes)
+    ax_d.tick_params(axis="x", labelrotation=25)
+    handles, labels = ax_f.get_legend_handles_labels()
+    order = sorted(range(len(labels)), key=lambda k: labels[k] in ("flagged", "missing"))
+    if handles:
+        ax_f.legend([handles[k] for k in order], [labels[k] for k in order], loc="lower left",
+                    bbox_to_anchor=(0.0, 1.0), ncol=min(len(handles), 5), frameon=False,
+                    fontsize=8, borderaxespad=0.2)
+    n_flagged = int(np.sum(history.flagged))
+    fig.suptitle(f"Modes over time against {Path(history.baseline_label).name}: "
+                 f"{n_flagged} of {history.n_times} tests flagged", fontsize=10)
     return fig
 
 

@@ -10,8 +10,8 @@ simulation is not timed):
 For each case the script runs ``automodal identify FILE`` (default settings: 100 bootstrap
 replicates, seed 0) as a child process ``--repeat`` times and reports the minimum wall time
 (``time.perf_counter`` around the whole child, so interpreter start, imports and file
-reading count) and the child's peak resident set size (``ru_maxrss`` from ``os.wait4`` on
-that child: the largest of the child and its reaped worker processes, not their sum). The
+reading count) and the child's peak resident set size (GNU ``/usr/bin/time -f %M``: the
+largest of the child and its reaped worker processes, not their sum; see ``run_child``). The
 physical modes of the printed table are matched one-to-one to the true modes (within 1 % in
 frequency).
 
@@ -117,15 +117,32 @@ def automodal_cmd() -> list[str]:
     return [exe] if exe else [sys.executable, "-m", "automodal"]
 
 
+GNU_TIME = "/usr/bin/time"
+
+
+def peak_method() -> str:
+    """How the children's peak RSS is measured (see :func:`run_child`)."""
+    if os.access(GNU_TIME, os.X_OK):
+        return f"`{GNU_TIME} -f %M` (KiB) around each child"
+    return "`os.wait4` ru_maxrss (at least this script's own size: see run_child)"
+
+
 def run_child(cmd: list[str], cwd: str | Path | None = None) -> dict:
     """Run ``cmd`` to completion; wall time, the child's peak RSS (MB), stdout, stderr.
 
-    The child is reaped with ``os.wait4``, whose resource usage belongs to that child alone
-    (``ru_maxrss``: KiB on Linux, the larger of the child and its reaped descendants).
+    The peak RSS comes from GNU time's ``%M`` (``ru_maxrss`` of the command, in KiB: the
+    larger of the command and its reaped worker processes, not their sum). The child's own
+    ``os.wait4`` usage is not used when GNU time is there: a child started from this
+    process inherits this process's high-water RSS at ``exec`` (measured: a 500 MB parent
+    made ``/bin/true`` peak at 515 MB), so it would report this script's size once the
+    script has grown. Without GNU time, ``os.wait4`` is the fall-back.
     """
-    with tempfile.TemporaryFile() as out, tempfile.TemporaryFile() as err:
+    use_time = os.access(GNU_TIME, os.X_OK)
+    with tempfile.TemporaryFile() as out, tempfile.TemporaryFile() as err, \
+            tempfile.NamedTemporaryFile("r", suffix=".rss") as rss:
+        full = [GNU_TIME, "-f", "%M", "-o", rss.name, *cmd] if use_time else cmd
         t0 = time.perf_counter()
-        proc = subprocess.Popen(cmd, stdout=out, stderr=err, stdin=subprocess.DEVNULL, cwd=cwd)
+        proc = subprocess.Popen(full, stdout=out, stderr=err, stdin=subprocess.DEVNULL, cwd=cwd)
         _, status, usage = os.wait4(proc.pid, 0)
         wall = time.perf_counter() - t0
         proc.returncode = os.waitstatus_to_exitcode(status)
@@ -133,11 +150,15 @@ def run_child(cmd: list[str], cwd: str | Path | None = None) -> dict:
         err.seek(0)
         stdout = out.read().decode(errors="replace")
         stderr = err.read().decode(errors="replace")
+        report = rss.read().split()
     if proc.returncode != 0:
         raise RuntimeError(
             f"{' '.join(cmd)} exited with {proc.returncode}:\n{stderr[-2000:]}"
         )
-    kib = usage.ru_maxrss if sys.platform != "darwin" else usage.ru_maxrss / 1024
+    if use_time:
+        kib = float(report[-1])
+    else:
+        kib = usage.ru_maxrss if sys.platform != "darwin" else usage.ru_maxrss / 1024
     return {"wall": wall, "peak_mb": kib / 1024.0, "stdout": stdout, "stderr": stderr}
 
 
@@ -309,6 +330,13 @@ def bench_replicates(path: Path, repeat: int) -> dict:
     t_one, t_one_first, _ = timed_min(
         lambda: subspace.identify(z, Hs, n_hi, T, q=q, weights=lw, estimate_bd_=True), repeat
     )
+    from threadpoolctl import threadpool_limits
+
+    def one_single_thread():
+        with threadpool_limits(1):
+            return subspace.identify(z, Hs, n_hi, T, q=q, weights=lw, estimate_bd_=True)
+
+    t_one1, _, _ = timed_min(one_single_thread, repeat)
     t_rep, t_rep_first, reps = timed_min(
         lambda: pipeline.run_replicates(basis, Hs, n_hi, T, weights, settings.jobs), repeat
     )
@@ -320,7 +348,7 @@ def bench_replicates(path: Path, repeat: int) -> dict:
     return {
         "N": N, "ny": ny, "nu": nu, "n_hi": n_hi, "q": q, "basis": result.orders["basis"],
         "t_pipeline": t_pipe, "runtime_s": result.runtime_s,
-        "t_one": t_one, "t_one_first": t_one_first,
+        "t_one": t_one, "t_one_first": t_one_first, "t_one_1thread": t_one1,
         "t_rep": t_rep, "t_rep_first": t_rep_first, "t_rep_1job": t_rep1, "jobs": jobs,
         "n_qr": sum(r.path == "qr" for r in reps),
     }
@@ -391,7 +419,8 @@ def render(meta: dict, cli: dict, ratios: dict, peer: dict | None) -> str:
     out += [f"* date: {meta['date']}", f"* machine: {meta['machine']}; nproc {meta['nproc']}",
             f"* Python {meta['python']}; {meta['blas']}",
             f"* automodal: git {meta['git']}",
-            f"* repeats: {meta['repeat']} (minimum wall time; peak RSS: largest of the runs)",
+            f"* repeats: {meta['repeat']} (minimum wall time; peak RSS: largest of the runs,"
+            f" {meta['peak_method']})",
             f"* load average (1, 5, 15 min) at start: {meta['load_start']};"
             f" at end: {meta.get('load_end', 'n/a')}", ""]
     if meta["simulate"]:
@@ -416,26 +445,32 @@ def render(meta: dict, cli: dict, ratios: dict, peer: dict | None) -> str:
         out += ["```", "", "Summary lines:", ""]
         out += [f"* {k}: `{r['summary']}` (load before: {r['load']})" for k, r in cli.items()]
         out += ["", f"'found' = a row marked physical within {MATCH_TOL:.0%} of a true natural"
-                " frequency (one-to-one). Peak MB = ru_maxrss of the identify process from"
-                " os.wait4 (MiB), the larger of it and its reaped worker processes.", ""]
+                " frequency (one-to-one). Peak MB (MiB) from " + meta["peak_method"] + ":"
+                " the larger of the identify process and its reaped worker processes.", ""]
     if ratios:
         out += ["## 100 replicates against one full-data identification", ""]
-        out += ["| case | N | ny | nu | n_ref | q | one `subspace.identify` s |"
-                " `run_replicates` s (jobs) | ratio | `run_replicates` 1 job s | ratio 1 job |"
-                " first call (cold) s: identify / replicates | whole `pipeline.identify` s (one call) |",
+        out += ["| case | N | ny | nu | n_ref | q | one `subspace.identify` s"
+                " (default BLAS threads / 1 thread) | `run_replicates` s (jobs) |"
+                " **ratio** | `run_replicates` 1 job s | ratio 1 job |"
+                " first call (cold) s: identify / replicates |"
+                " whole `pipeline.identify` s (one call) |",
                 "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|---:|"]
         for key, r in ratios.items():
+            one = min(r["t_one"], r["t_one_1thread"])
             out.append(
                 f"| {key} | {r['N']} | {r['ny']} | {r['nu']} | {r['n_hi']} | {r['q']} |"
-                f" {fmt_s(r['t_one'])} | {fmt_s(r['t_rep'])} ({r['jobs']}) |"
-                f" **{r['t_rep'] / r['t_one']:.2f}** | {fmt_s(r['t_rep_1job'])} |"
-                f" {r['t_rep_1job'] / r['t_one']:.2f} |"
+                f" {fmt_s(r['t_one'])} / {fmt_s(r['t_one_1thread'])} |"
+                f" {fmt_s(r['t_rep'])} ({r['jobs']}) |"
+                f" **{r['t_rep'] / one:.2f}** | {fmt_s(r['t_rep_1job'])} |"
+                f" {r['t_rep_1job'] / one:.2f} |"
                 f" {fmt_s(r['t_one_first'])} / {fmt_s(r['t_rep_first'])} |"
                 f" {r['t_pipeline']:.2f} |"
             )
         out += ["", "Target: 100 replicates <= 3x one full-data identification at the reference"
                 " order. One identification = `subspace.identify(z, Hs, n_ref, T, q=q,"
-                " weights=lw, estimate_bd_=True)` (row basis, projection, A/C, B/D);"
+                " weights=lw, estimate_bd_=True)` (row basis, projection, A/C, B/D), timed"
+                " with the default BLAS threads and with one (each replicate uses one); the"
+                " ratios divide by the faster of the two;"
                 " replicates = `pipeline.run_replicates(basis, Hs, n_ref, T, weights, jobs)`"
                 " with the pipeline's basis and weights (Gram sums + 100 small problems), jobs"
                 " as the pipeline chooses them (`jobs=None`) and with 1 job. Minimum of the"
@@ -443,7 +478,7 @@ def render(meta: dict, cli: dict, ratios: dict, peer: dict | None) -> str:
                 " the first call, which the 'cold' column includes).", ""]
         for key, r in ratios.items():
             out.append(f"* {key}: basis {r['basis']}; replicates on the QR fall-back path:"
-                       f" {r['n_qr']} of {N_BOOTSTRAP}")
+                       f" {r['n_qr']} of {N_BOOTSTRAP}; load before: {r['load']}")
         out.append("")
     if peer:
         info = peer["info"]
@@ -499,7 +534,7 @@ def main(argv: list[str] | None = None) -> int:
         "machine": f"{platform.machine()} {platform.processor() or platform.platform()}",
         "nproc": os.cpu_count(), "python": platform.python_version(), "blas": blas_line(),
         "git": git_state(), "repeat": args.repeat, "load_start": load_average(),
-        "simulate": [], "dims": {}, "true": {},
+        "simulate": [], "dims": {}, "true": {}, "peak_method": peak_method(),
     }
     cli, ratios, peer = {}, {}, None
     try:
@@ -519,13 +554,7 @@ def main(argv: list[str] | None = None) -> int:
             r = cli[key]
             print(f"    wall {r['wall']:.2f} s, peak {r['peak_mb']:.0f} MB,"
                   f" {r['matched']}/{r['n_true']} found, {r['extra']} extra", flush=True)
-        for key in [k for k in args.cases if k in RATIO_CASES]:
-            print(f"[{time.strftime('%H:%M:%S')}] case {key}: replicates vs one identification",
-                  flush=True)
-            ratios[key] = bench_replicates(paths[key], args.repeat)
-            r = ratios[key]
-            print(f"    one {r['t_one']:.3f} s, replicates {r['t_rep']:.3f} s"
-                  f" -> ratio {r['t_rep'] / r['t_one']:.2f}", flush=True)
+        # children first: nothing of this process's later growth can reach them
         if PEER_CASE in args.cases:
             print(f"[{time.strftime('%H:%M:%S')}] case {PEER_CASE}: sdypy-EMA", flush=True)
             try:
@@ -534,6 +563,16 @@ def main(argv: list[str] | None = None) -> int:
             except RuntimeError as exc:
                 print(f"    sdypy-EMA failed (pip install -e '.[bench]'?): {exc}",
                       file=sys.stderr)
+        for key in [k for k in args.cases if k in RATIO_CASES]:
+            print(f"[{time.strftime('%H:%M:%S')}] case {key}: replicates vs one identification",
+                  flush=True)
+            load = load_average()
+            ratios[key] = bench_replicates(paths[key], args.repeat)
+            ratios[key]["load"] = load
+            r = ratios[key]
+            one = min(r["t_one"], r["t_one_1thread"])
+            print(f"    one {one:.3f} s, replicates {r['t_rep']:.3f} s"
+                  f" -> ratio {r['t_rep'] / one:.2f}", flush=True)
         meta["load_end"] = load_average()
     finally:
         if tmp is not None:

@@ -2,8 +2,10 @@
 
 For a grid of sizes (lines N, outputs ny, inputs nu, model order n) the script times
 
-* the observability step alone (projection + SVD on the QR path, Gram sums + Schur
-  complement + eigh on the Gram path), with a row basis built beforehand and shared;
+* the observability step alone, ``subspace.observability(basis, H, n, method)`` with
+  ``method="qr"`` (LQ projection + SVD of L22) and ``method="gram"`` (Gram matrix + Schur
+  complement + eigh, however the package forms the Gram matrix for the chosen row basis),
+  with the row basis built beforehand and shared;
 * the whole ``identify(..., estimate_bd_=False)`` on each path (row basis included);
 
 and compares the two observability subspaces by their largest principal angle. A second
@@ -130,7 +132,8 @@ def blas_summary() -> str:
         for info in threadpoolctl.threadpool_info():
             if info.get("user_api") != "blas":
                 continue
-            key = (info.get("internal_api"), info.get("num_threads"), info.get("architecture"))
+            key = (info.get("internal_api"), info.get("version"), info.get("num_threads"),
+                   info.get("architecture"))
             if key not in seen:
                 seen.add(key)
                 parts.append(
@@ -140,6 +143,26 @@ def blas_summary() -> str:
     except ImportError:
         pass
     return "; ".join(parts)
+
+
+def code_version() -> str:
+    """Commit of the repository holding automodal, and whether subspace.py differs from it."""
+    import hashlib
+    import subprocess
+
+    path = os.path.abspath(subspace.__file__)
+    with open(path, "rb") as fh:
+        digest = hashlib.sha256(fh.read()).hexdigest()[:12]
+    where = os.path.dirname(path)
+    try:
+        head = subprocess.run(["git", "-C", where, "rev-parse", "--short", "HEAD"],
+                              capture_output=True, text=True, timeout=10).stdout.strip()
+        dirty = subprocess.run(["git", "-C", where, "status", "--porcelain", path],
+                               capture_output=True, text=True, timeout=10).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        head, dirty = "", ""
+    state = (" (modified)" if dirty else "") if head else ""
+    return f"automodal commit {head or 'unknown'}{state}, subspace.py sha256 {digest}"
 
 
 def machine_summary() -> str:
@@ -398,6 +421,8 @@ def main(argv: list[str] | None = None) -> int:
 
         limiter = threadpoolctl.threadpool_limits(limits=args.blas_threads, user_api="blas")
 
+    version = code_version()  # read before timing: the code must not change under us
+    load_start = os.getloadavg()
     start = time.perf_counter()
     with limiter:
         data = TestStructure()
@@ -409,6 +434,7 @@ def main(argv: list[str] | None = None) -> int:
         rows, stats, skipped = run_grid(data, grid, args)
         boot_rows = [] if args.no_bootstrap else run_bootstrap(data, boot_sizes, args)
     elapsed = time.perf_counter() - start
+    load_end = os.getloadavg()
 
     out = []
     out.append("## Observability step and one identification, QR path vs Gram path")
@@ -450,9 +476,15 @@ def main(argv: list[str] | None = None) -> int:
     out.append(f"Run: {datetime.datetime.now().isoformat(timespec='seconds')}; "
                f"{machine_summary()}")
     out.append(f"BLAS: {blas}")
+    out.append(f"Code: {version}")
     cmd = "python benchmarks/bench_subspace.py " + " ".join(
         sys.argv[1:] if argv is None else argv)
     out.append(f"Command: `{cmd.strip()}`; total wall time {elapsed:.0f} s")
+    out.append(
+        f"Load average (1, 5, 15 min) at start {', '.join(f'{x:.2f}' for x in load_start)}; "
+        f"at end {', '.join(f'{x:.2f}' for x in load_end)} (other processes on the machine "
+        f"distort the times; above about {os.cpu_count()} the numbers are suspect)"
+    )
     text = "\n".join(out) + "\n"
     print(text)
     if args.out:

@@ -18,6 +18,7 @@ _COMMANDS = {
     "identify": ("automodal.cli.identify_cmd", "identify", "Identify the modes in an FRF file."),
     "plot": ("automodal.cli.plot_cmd", "plot", "Draw the figures of a report."),
     "simulate": ("automodal.cli.simulate_cmd", "simulate", "Write a synthetic test of a known system."),
+    "track": ("automodal.cli.track_cmd", "track", "Track modes over time from many reports."),
 }
 
 

@@ -4,11 +4,22 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import click
 
-from automodal.cli._common import debug_option, exit_on_error
+from automodal.cli._common import (
+    EXIT_INPUT,
+    EXIT_MONITORING,
+    EXIT_OK,
+    debug_option,
+    exit_on_error,
+)
 from automodal.errors import InputError
+
+if TYPE_CHECKING:
+    from automodal.batch import FileOutcome
+    from automodal.pipeline import Settings
 
 REPORT_SUFFIXES = (".json", ".h5", ".hdf5")
 
@@ -28,10 +39,68 @@ def read_input(path: str):
     """Read any supported input file into an :class:`FRFData` (see :func:`read_any`)."""
     p = Path(path)
     if p.is_dir():
-        raise InputError("is a folder; batch runs over folders are not supported yet", path)
+        raise InputError("is a folder, not an input file", path)
     from automodal.io.readers import read_any
 
     return read_any(path)
+
+
+def read_baseline(path: str) -> dict:
+    """Read the ``--baseline`` report (a refusal names the file and exits 2)."""
+    from automodal.io.report import read_report
+
+    return read_report(path)
+
+
+def _batch_outdir(outputs: tuple[str, ...]) -> Path:
+    """The one ``-o OUTDIR`` of a batch run (made by the batch when missing)."""
+    if len(outputs) != 1:
+        raise InputError("a batch run (a folder or a glob as INPUT) needs exactly one -o OUTDIR")
+    out = Path(outputs[0])
+    if out.exists() and not out.is_dir():
+        raise InputError("is not a folder: a batch run writes its reports into -o OUTDIR",
+                         str(out))
+    if not out.parent.is_dir():
+        raise InputError("the output folder's parent does not exist", str(out))
+    return out
+
+
+def _run_batch(input_path: str, outputs: tuple[str, ...], settings: Settings, baseline: dict | None,
+               baseline_path: str | None, report_format: str, force: bool, jobs: int | None,
+               dask_scheduler: str | None, as_json: bool, quiet: bool) -> int:
+    """Batch mode of ``identify``: every file of a folder or glob; returns the exit status."""
+    from automodal.batch import expand_inputs, run_batch
+
+    outdir = _batch_outdir(outputs)
+    files = expand_inputs(input_path, exclude=outdir)
+    if not files:
+        raise InputError("no input file found", input_path)
+    talk = not (quiet or as_json)
+
+    def show(outcome: FileOutcome) -> None:
+        if outcome.status == "failed":
+            click.echo(f"automodal: error: {outcome.file}: {outcome.error}", err=True)
+            return
+        if talk:
+            freqs = ", ".join(f"{f:.4g}" for f in outcome.frequencies_hz if f is not None)
+            what = "up to date, not identified again" if outcome.status == "skipped" else (
+                f"{outcome.n_physical} physical modes ({freqs or '-'} Hz)")
+            click.echo(f"{outcome.file}: {what}")
+        if outcome.status == "flagged" and not quiet:
+            for line in outcome.flagged_modes:
+                click.echo(f"{outcome.file}: {line}", err=as_json)
+
+    result = run_batch(files, outdir, settings, formats=report_format, baseline=baseline,
+                       baseline_path=baseline_path, force=force, jobs=jobs,
+                       scheduler_address=dask_scheduler, progress=show, spec=input_path)
+    if as_json:
+        click.echo(result.summary_json.read_text(encoding="utf-8"), nl=False)
+    elif not quiet:
+        counts = ", ".join(f"{result.count(s)} {s}" for s in ("ok", "flagged", "failed", "skipped"))
+        click.echo(f"{len(result.outcomes)} files: {counts}; summary in {result.summary_json}")
+    if result.any_flagged:
+        return EXIT_MONITORING
+    return EXIT_INPUT if result.any_failed else EXIT_OK
 
 
 @click.command()
@@ -51,6 +120,15 @@ def read_input(path: str):
               help="Processes for the bootstrap (default: all cores); never changes the result.")
 @click.option("--plot", "plot_dir", type=click.Path(file_okay=False), default=None, metavar="DIR",
               help="Also write the standard figures (PNG) into DIR.")
+@click.option("--baseline", "baseline_path", type=click.Path(), default=None, metavar="REPORT",
+              help="Check the modes against a baseline report: exit 3 when a mode moved, "
+              "changed shape or is missing (a 'monitoring' block goes into the report).")
+@click.option("--force", is_flag=True,
+              help="Batch: identify again files whose report is up to date.")
+@click.option("--format", "report_format", type=click.Choice(["json", "h5", "both"]),
+              default="json", show_default=True, help="Batch: report files per input.")
+@click.option("--dask-scheduler", default=None, metavar="ADDRESS",
+              help="Batch: run the files on an existing Dask cluster (tcp://host:8786).")
 @debug_option
 def identify(
     input_path: str,
@@ -63,24 +141,32 @@ def identify(
     max_order: int | None,
     jobs: int | None,
     plot_dir: str | None,
+    baseline_path: str | None,
+    force: bool,
+    report_format: str,
+    dask_scheduler: str | None,
     debug: bool,
 ) -> None:
     """Identify the modes in INPUT (an automodal FRF file) with no human choice.
 
     Prints a table of modes (or the JSON report with --json) and writes each -o report.
 
+    INPUT may also be a folder or a quoted glob: a batch run, one report per file in the
+    folder -o OUTDIR with summary.json and summary.csv; files whose report is up to date
+    are skipped. Exit status 2 when a file failed (the batch goes on), 3 when --baseline
+    flagged a mode.
+
     \b
     Examples:
       automodal identify sample_data/chain6.h5
       automodal identify test.h5 -o report.json -o report.h5 --seed 1 --quiet
       automodal identify test.h5 -o report.h5 --plot figures/
+      automodal identify today.h5 -o today.json --baseline baseline.json
+      automodal identify 'incoming/*.h5' -o reports/ --baseline baseline.json --quiet
     """
     with exit_on_error(debug):
-        _check_outputs(outputs)
-        data = read_input(input_path)
-        from automodal.io.report import format_table, report_dict, save_report
+        from automodal.batch import is_batch_input
         from automodal.pipeline import Settings
-        from automodal.pipeline import identify as run
 
         settings = Settings(
             band_hz=tuple(band) if band else None,
@@ -89,6 +175,21 @@ def identify(
             max_order=max_order,
             jobs=jobs,
         )
+        batch = is_batch_input(input_path)
+        if batch and plot_dir:
+            raise InputError("--plot is for one file: draw a batch's reports with automodal plot")
+        if not batch and dask_scheduler:
+            raise InputError("--dask-scheduler is for batch runs (a folder or a glob as INPUT)")
+        if not batch:
+            _check_outputs(outputs)
+        baseline = read_baseline(baseline_path) if baseline_path else None
+        if batch:
+            sys.exit(_run_batch(input_path, outputs, settings, baseline, baseline_path,
+                                report_format, force, jobs, dask_scheduler, as_json, quiet))
+        data = read_input(input_path)
+        from automodal.io.report import format_table, report_dict, save_report
+        from automodal.pipeline import identify as run
+
         show_bar = not quiet and sys.stderr.isatty()
         if show_bar:
             with click.progressbar(length=n_bootstrap, label="bootstrap", file=sys.stderr) as bar:
@@ -96,6 +197,15 @@ def identify(
         else:
             result = run(data, settings)
         report = report_dict(result, data, input_path=input_path)
+        check = None
+        if baseline is not None:
+            from automodal.batch import attach_monitoring
+
+            try:
+                check = attach_monitoring(report, baseline, baseline_path)
+            except ValueError as exc:
+                raise InputError(f"cannot be checked against {baseline_path}: {exc}",
+                                 input_path) from None
         for out in outputs:
             save_report(out, report, result.poles, frf=result.frf_fit)
         if plot_dir:
@@ -108,3 +218,12 @@ def identify(
             click.echo(json.dumps(report, indent=2))
         elif not quiet:
             click.echo(format_table(result))
+        if check is not None and not quiet:
+            for entry in check.flagged_entries:
+                click.echo(f"{input_path}: {entry.message}", err=as_json)
+            if not as_json:
+                matched = sum(e.status in ("ok", "changed") for e in check.entries)
+                click.echo(f"against {baseline_path}: {len(check.flagged_entries)} flagged, "
+                           f"{matched} baseline modes matched")
+        if check is not None and check.flagged:
+            sys.exit(EXIT_MONITORING)

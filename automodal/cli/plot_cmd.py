@@ -47,22 +47,31 @@ def _missing(report_path: str, arrays: dict) -> str | None:
               help="Resolution of a PNG.")
 @debug_option
 def plot(report_path: str, output: str | None, dpi: int, debug: bool) -> None:
-    """Draw the overview figure of REPORT (a .json or .h5 report of automodal identify).
+    """Draw the overview figure of REPORT (a .json or .h5 report of automodal identify),
+    or the trends of a history file of automodal track.
 
     The figure holds the bootstrap poles by cluster with the Trashbox over the FRF, the
     measured FRFs against those synthesized from the physical modes, the physicalness of
     every cluster, and the physical mode shapes (on the sensor geometry when it is known).
     An HDF5 report holds everything; a JSON report has no poles nor FRFs, and only the
-    physicalness and the shapes are drawn. Prints the figure's path.
+    physicalness and the shapes are drawn. A history file (automodal track) gives the
+    frequency change and damping of each tracked mode over time with bootstrap bands,
+    flagged points ringed in red. Prints the figure's path.
 
     \b
     Examples:
       automodal plot report.h5
       automodal plot report.h5 -o modes.svg
+      automodal plot history.h5 -o trends.png
     """
     with exit_on_error(debug):
         out = Path(output) if output else default_output(report_path)
         _check_output(out)
+        from automodal.io.history import is_history_file
+
+        if is_history_file(report_path):
+            _plot_history(report_path, out, dpi)
+            return
         from automodal.io.report import read_report, read_report_arrays
 
         report = read_report(report_path)
@@ -79,3 +88,17 @@ def plot(report_path: str, output: str | None, dpi: int, debug: bool) -> None:
         fig = overview(report, arrays["poles"] or None, arrays["frf"] or None)
         save_figure(fig, out, dpi=dpi)
         click.echo(str(out))
+
+
+def _plot_history(path: str, out: Path, dpi: int) -> None:
+    """The trend figure of a history file, written to ``out``; prints its path."""
+    from automodal.io.history import read_history
+
+    history = read_history(path)
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from automodal.plots import save_figure, trend
+
+    save_figure(trend(history), out, dpi=dpi)
+    click.echo(str(out))

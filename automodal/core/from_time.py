@@ -60,6 +60,7 @@ def frfdata_from_time(
     excitation : {"auto", "random", "impact", "operational"}
         ``"auto"``: operational without inputs, impact when the forces are impulsive
         (:func:`~automodal.core.spectra.detect_hits`), random otherwise.
+        ``"operational"`` with measured forces ignores them.
     nperseg : int, optional
         Segment length (random: Welch segment; operational: FFT length, max lag
         ``nperseg // 2``). Default :func:`~automodal.core.spectra.choose_segment`. Ignored
@@ -77,14 +78,16 @@ def frfdata_from_time(
     -------
     data : FRFData
         ``quantity`` from the attributes, else ``"displacement"`` (the FRF file's default;
-        ``info["quantity_assumed"]`` says so). H1 routes set ``coherence`` and
-        ``records``; the operational route has the references as inputs (named after
-        them) and ``attributes["analysis"] = "operational"``. Other attributes of ``ts``
-        are copied; ``source`` is kept.
+        ``info["quantity_assumed"]`` says so). H1 routes set ``coherence``, ``records``
+        and ``attributes["analysis"] = "h1"``; the operational route has the references
+        as inputs (named after them) and ``attributes["analysis"] = "operational"``.
+        Other attributes of ``ts`` are copied; ``source`` is kept.
     info : dict
         The choices, JSON-friendly: ``analysis``, ``sample_rate_hz``, ``n_samples``,
         ``nperseg``, ``window``, ``n_segments``, ``frequency_resolution_hz``, ``band_hz``,
-        ``n_lines``, ``quantity``, ``quantity_assumed`` and per route: ``overlap``,
+        ``n_lines``, ``quantity``, ``quantity_assumed`` (``n_segments`` counts Welch
+        segments, hits, or for the operational route the independent blocks of one max lag,
+        ``n_samples // max_lag``) and per route: ``overlap``,
         ``n_records``, ``segments_per_record`` (H1); ``hits``, ``force_window_samples``,
         ``exponential_decay_per_s`` (impact); ``references``, ``reference_names``,
         ``max_lag_samples``, ``max_lag_s``, ``lag_window``, ``lag_window_tail``,
@@ -139,11 +142,11 @@ def frfdata_from_time(
     elif excitation == "impact":
         freq, H, coherence, records = _impact(ts, hits, info)
         input_names = ts.input_names
-        attributes["analysis"] = "impact"
+        attributes["analysis"] = "h1"
     else:
         freq, H, coherence, records = _random(ts, nperseg, info)
         input_names = ts.input_names
-        attributes["analysis"] = "random"
+        attributes["analysis"] = "h1"
 
     keep = (freq > 0) & (freq <= usable_fraction * fs / 2.0 * (1 + 1e-12))
     if np.count_nonzero(keep) < 2:

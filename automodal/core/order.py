@@ -48,6 +48,12 @@ def order_at_floor(
     ok = np.isfinite(misfit)
     if not ok.any():
         return int(orders[0])
+    # the best misfit reached so far: a truncated model of higher order may fit worse in
+    # the log sense (measured on ambient half spectra, where the curve rose again after its
+    # minimum and the raw floor sat at 2x the minimum)
+    misfit = np.where(ok, misfit, np.inf)
+    misfit = np.minimum.accumulate(misfit)
+    ok = np.isfinite(misfit)
     floor = float(np.median(misfit[ok][ok.sum() // 2 :]))
     top = float(np.max(misfit[ok]))
     limit = min(factor * floor, floor + fraction * (top - floor))

@@ -274,10 +274,12 @@ def h1_estimate(
         Remove each segment's mean. Default: yes, except for a ``"boxcar"`` window (the
         mean of an impact record belongs to its pulse).
     segments_per_record : int, optional
-        Consecutive segments pooled into one record estimate. Default: the smallest group
-        that makes ``S_uu`` invertible (``n_in`` segments) and leaves at most
-        ``max_records`` records; a single-segment ratio ``Y / U`` of random data has
-        heavy tails (a Cauchy-like ratio), so more pooling is safer for random forces.
+        Consecutive segments pooled into one record estimate. Default ``n_in + 2``, or more
+        so that there are at most ``max_records`` records. With random forces a record of
+        ``g`` segments has ``S_uu`` Wishart-distributed with ``g`` degrees of freedom: for
+        ``g = n_in`` (a single-segment ratio ``Y / U`` for one input) the error of the
+        record's H1 has infinite variance (a ratio of Gaussians), ``g >= n_in + 2`` makes it
+        finite. Use 1 for impact records (one hit each: the force is not random).
     max_records : int
         Largest number of records.
 
@@ -315,12 +317,14 @@ def h1_estimate(
         if st.size and (st.min() < 0 or st.max() + nperseg > n_samples):
             raise ValueError("a segment runs outside the record")
     if st.size == 0:
-        raise ValueError(f"the record ({n_samples} samples) is shorter than one segment ({nperseg})")
+        raise ValueError(
+            f"the record ({n_samples} samples) is shorter than one segment ({nperseg})"
+        )
     w = _window(window, nperseg)
     if detrend is None:
         detrend = not (isinstance(window, str) and window in ("boxcar", "rect", "rectangular"))
     n_seg = st.size
-    g = segments_per_record or max(n_in, math.ceil(n_seg / max(1, max_records)))
+    g = segments_per_record or max(n_in + 2, math.ceil(n_seg / max(1, max_records)))
     n_rec = max(1, n_seg // g)
     record_of = np.minimum(np.arange(n_seg) // g, n_rec - 1)
 
@@ -688,8 +692,9 @@ def choose_references(
        one adds no coverage, so it is never taken. It stops at ``max_refs`` (3) or when
        the gain is below ``min_gain`` (0.1) per peak.
 
-    Without any peak (no structure visible) the channel with the largest mean visibility
-    over all lines is the one reference. With more than ``max_channels`` (64) outputs, only
+    Without any peak (no structure visible) the one reference is the channel with the
+    largest entry in the dominant eigenvector of the line-averaged ``|S(f)|`` (the channel
+    most coherent with the others). With more than ``max_channels`` (64) outputs, only
     that many, with the largest spectral peak over their noise floor (mean over median of
     the auto-spectrum), are considered.
 
@@ -738,14 +743,16 @@ def choose_references(
         cand = np.sort(np.argsort(-score, kind="stable")[:max_channels])
     S = np.zeros((L // 2 + 1, cand.size, cand.size), dtype=complex)
     for _, X in _segment_spectra(y[:, cand], st, L, w, True):
-        S += np.einsum("sfi,sfj->fij", X, X.conj())
-    U, s, _ = np.linalg.svd(S[1:], hermitian=True)  # the 0 Hz line holds only removed means
-    vis = np.abs(U[:, :, 0]) ** 2  # (n_freq, n_cand)
-    peaks, _ = scipy.signal.find_peaks(np.log(np.maximum(s[:, 0], np.finfo(float).tiny)),
+        Xf = X.transpose(1, 2, 0)  # (n_freq, n_cand, c)
+        S += Xf @ Xf.conj().transpose(0, 2, 1)
+    S = S[1:]  # the 0 Hz line holds only the removed means
+    s1 = np.linalg.eigvalsh(S)[:, -1]
+    peaks, _ = scipy.signal.find_peaks(np.log(np.maximum(s1, np.finfo(float).tiny)),
                                        prominence=np.log(3.0))
     if peaks.size == 0:
-        return [int(cand[int(np.argmax(vis.mean(axis=0)))])]
-    v = vis[peaks]  # (n_peaks, n_cand)
+        _, V = np.linalg.eigh(np.abs(S).mean(axis=0))
+        return [int(cand[int(np.argmax(np.abs(V[:, -1])))])]
+    v = _visibility(S[peaks])  # (n_peaks, n_cand)
     chosen = [int(np.argmax(v.sum(axis=0)))]
     cover = v[:, chosen[0]].copy()
     while len(chosen) < min(max_refs, cand.size):
@@ -757,6 +764,12 @@ def choose_references(
         chosen.append(best)
         cover = np.maximum(cover, v[:, best])
     return [int(cand[c]) for c in chosen]
+
+
+def _visibility(S: np.ndarray) -> np.ndarray:
+    """``|u1_i|^2`` per line: each channel's share of the dominant singular vector."""
+    _, U = np.linalg.eigh(S)
+    return np.abs(U[:, :, -1]) ** 2
 
 
 # ---------------------------------------------------------------------------------------

@@ -33,8 +33,8 @@ from automodal.frfdata import FRFData
 __all__ = ["READERS", "check_frf_arrays", "check_is_file", "read_any"]
 
 READERS: dict[str, tuple[str, str]] = {
-    ".h5": ("automodal.io.frf_file", "read_frf"),
-    ".hdf5": ("automodal.io.frf_file", "read_frf"),
+    ".h5": ("automodal.io.readers", "read_hdf5"),
+    ".hdf5": ("automodal.io.readers", "read_hdf5"),
     ".uff": ("automodal.io.uff", "read_uff"),
     ".unv": ("automodal.io.uff", "read_uff"),
     ".csv": ("automodal.io.tabular", "read_csv"),
@@ -79,6 +79,47 @@ def read_any(path: str | os.PathLike[str]) -> FRFData:
     module, name = target
     reader = getattr(importlib.import_module(module), name)
     return reader(path)
+
+
+def read_hdf5(path: str | os.PathLike[str]) -> FRFData:
+    """Read an automodal HDF5 test: FRFs from ``/frf``, or FRFs made from ``/time``.
+
+    A file with time series and no FRFs is turned into FRFs here
+    (:func:`automodal.core.from_time.frfdata_from_time`: H1 with forces, half spectra
+    against automatically chosen references without); the choices made (segment length,
+    references, windows) are kept in ``attributes["time_analysis"]`` so the report shows
+    them, and a window's decay rate in ``attributes["window_decay_per_s"]`` so that the
+    pipeline can take it out of the damping.
+    """
+    if not _time_only(path):
+        from automodal.io.frf_file import read_frf
+
+        return read_frf(path)
+    from automodal.core.from_time import frfdata_from_time
+    from automodal.io.time_file import read_time
+
+    ts = read_time(path)
+    try:
+        data, info = frfdata_from_time(ts)
+    except ValueError as exc:
+        raise InputError(str(exc), str(path)) from None
+    decay = float(info.get("lag_window_decay_per_s") or info.get("exponential_decay_per_s") or 0.0)
+    data.attributes["time_analysis"] = info
+    data.attributes["window_decay_per_s"] = decay
+    data.source = str(path)
+    return data
+
+
+def _time_only(path: str | os.PathLike[str]) -> bool:
+    """Whether an HDF5 file has a ``/time`` group and no ``/frf`` (False when unreadable:
+    the FRF reader then gives the error)."""
+    import h5py
+
+    try:
+        with h5py.File(path, "r") as f:
+            return "frf" not in f and isinstance(f.get("time"), h5py.Group)
+    except Exception:  # noqa: BLE001 - the FRF reader reports what is wrong
+        return False
 
 
 def check_is_file(path: Path, source: str) -> None:

@@ -1,0 +1,104 @@
+"""``automodal track``: modes of many reports tracked over time into a history file."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from automodal.cli._common import debug_option, exit_on_error
+from automodal.errors import InputError
+
+REPORT_SUFFIXES = (".json", ".h5", ".hdf5")
+"""Suffixes of the reports taken from a folder given as REPORTS."""
+
+SKIPPED_NAMES = ("summary.json",)
+"""Files of a folder that are never reports (the batch summary)."""
+
+
+def report_files(paths: tuple[str, ...]) -> list[str]:
+    """The report files named by REPORTS: files as given, folders by their reports.
+
+    A folder gives its ``*.json``, ``*.h5`` and ``*.hdf5`` files (not hidden ones, not the
+    batch's ``summary.json``), sorted by name.
+    """
+    files: list[str] = []
+    for given in paths:
+        p = Path(given)
+        if p.is_dir():
+            files += sorted(
+                str(f) for f in p.iterdir()
+                if f.is_file() and f.suffix.lower() in REPORT_SUFFIXES
+                and not f.name.startswith(".") and f.name not in SKIPPED_NAMES
+            )
+        else:
+            files.append(given)
+    return files
+
+
+@click.command()
+@click.argument("reports", metavar="REPORTS...", nargs=-1, required=True, type=click.Path())
+@click.option("-o", "--output", required=True, metavar="HISTORY.h5",
+              help="The history file to write (HDF5).")
+@click.option("--baseline", "baseline_path", default=None, metavar="REPORT", type=click.Path(),
+              help="Track and check against this report (default: the earliest of REPORTS).")
+@click.option("-q", "--quiet", is_flag=True, help="Print nothing unless something is wrong.")
+@debug_option
+def track(reports: tuple[str, ...], output: str, baseline_path: str | None, quiet: bool,
+          debug: bool) -> None:
+    """Track the physical modes of a baseline through REPORTS over time.
+
+    Each report (or every report in a folder) is placed at its test's date (the input
+    attribute test_date or date, ISO 8601) or else at the time it was made, matched to the
+    baseline's physical modes by frequency and shape, and checked as --baseline does in
+    identify. The history file holds frequency and damping with their bootstrap spread per
+    mode and time, and which modes were flagged; draw it with automodal plot. Prints one
+    line per report.
+
+    \b
+    Examples:
+      automodal track reports/ -o history.h5
+      automodal track reports/*.json --baseline baseline.json -o history.h5
+      automodal plot history.h5
+    """
+    with exit_on_error(debug):
+        out = Path(output)
+        if not out.parent.is_dir():
+            raise InputError("the history file's folder does not exist", str(out))
+        from automodal.core.monitoring import build_history
+        from automodal.io.history import write_history
+        from automodal.io.report import read_report
+
+        files = report_files(reports)
+        if not files:
+            raise InputError("no report found", " ".join(reports))
+        loaded = [read_report(f) for f in files]
+        if baseline_path:
+            baseline, label = read_report(baseline_path), baseline_path
+        else:
+            times = [_time_or_refuse(r, f) for r, f in zip(loaded, files)]
+            first = min(range(len(files)), key=lambda i: (times[i], files[i]))
+            baseline, label = loaded[first], files[first]
+        try:
+            history = build_history(loaded, files, baseline, label)
+        except ValueError as exc:
+            raise InputError(str(exc)) from None
+        write_history(out, history)
+        if not quiet:
+            for t in range(history.n_times):
+                flagged = [f"mode {int(history.mode_ids[m])}" for m in range(history.n_modes)
+                           if history.mode_flagged[t, m]]
+                state = f"flagged: {', '.join(flagged)}" if flagged else "ok"
+                click.echo(f"{history.times[t]}  {history.labels[t]}: {state}")
+            click.echo(f"{history.n_times} reports, {history.n_modes} modes tracked against "
+                       f"{label}; {int(history.flagged.sum())} flagged; written to {out}")
+
+
+def _time_or_refuse(report: dict, path: str) -> str:
+    """A report's time, or an :class:`InputError` naming the file."""
+    from automodal.core.monitoring import report_time
+
+    try:
+        return report_time(report)[0]
+    except ValueError as exc:
+        raise InputError(str(exc), path) from None

@@ -1,0 +1,293 @@
+"""Monitoring (issue 6): baseline checks, batch runs, histories and a Dask cluster.
+
+A damped 3-DOF chain is "measured" (simulated with new noise) ten times, with one spring
+10 % softer from the 7th measurement on, and once more for the baseline. Small systems and
+20 bootstrap replicates keep the whole file to a few seconds per identification.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from automodal.batch import expand_inputs, report_stems, run_batch
+from automodal.cli import main
+from automodal.core import monitoring as mon
+from automodal.core import simulate as sim
+from automodal.io.frf_file import write_frf
+from automodal.io.history import is_history_file, read_history, write_history
+from automodal.io.report import read_report
+from automodal.pipeline import Settings
+
+N_MEASUREMENTS = 10
+FIRST_DAMAGED = 7
+BOOTSTRAP = ["--bootstrap", "20", "--seed", "0"]
+
+
+# ------------------------------------------------------------------------------ helpers
+
+
+def soften(system: sim.MechanicalSystem, i: int, j: int, factor: float) -> sim.MechanicalSystem:
+    """The system with the spring between DOFs ``i`` and ``j`` scaled by ``factor``."""
+    K = system.K.copy()
+    change = (1.0 - factor) * -K[i, j]
+    K[i, i] -= change
+    K[j, j] -= change
+    K[i, j] += change
+    K[j, i] += change
+    return sim.MechanicalSystem(system.M, K, system.C, system.xyz, system.meta)
+
+
+HEALTHY = sim.damp(sim.chain(3), "rayleigh", 0.01)
+DAMAGED = soften(HEALTHY, 0, 1, 0.9)
+LINES = sim.frequency_lines(1.25 * sim.natural_frequencies_hz(HEALTHY).max(), 300)
+
+
+def measure(path: Path, damaged: bool, seed: int, day: int) -> Path:
+    """Write one simulated measurement with a test date."""
+    data, _ = sim.simulate_test(DAMAGED if damaged else HEALTHY, None, [2], LINES,
+                                noise=0.01, seed=seed)
+    data.attributes["test_date"] = f"2026-03-{day:02d}T06:00:00"
+    write_frf(path, data)
+    return path
+
+
+def cli(*args: str):
+    """Run the command line in this process; returns click's result."""
+    return CliRunner().invoke(main, [str(a) for a in args], catch_exceptions=False)
+
+
+@pytest.fixture(scope="module")
+def site(tmp_path_factory) -> dict[str, Path]:
+    """The baseline report and a folder of ten measurements (damage from the 7th on)."""
+    root = tmp_path_factory.mktemp("site")
+    incoming = root / "incoming"
+    incoming.mkdir()
+    for k in range(1, N_MEASUREMENTS + 1):
+        measure(incoming / f"m{k:02d}.h5", k >= FIRST_DAMAGED, seed=k, day=k)
+    base_frf = measure(root / "baseline.h5", False, seed=100, day=1)
+    result = cli("identify", base_frf, "-o", root / "baseline.json", "-q", *BOOTSTRAP)
+    assert result.exit_code == 0, result.output
+    return {"root": root, "incoming": incoming, "baseline": root / "baseline.json"}
+
+
+def table(freqs, stds=None, shapes=None, physical=None) -> mon.ModeTable:
+    """A mode table for the unit tests (shapes default to unit vectors)."""
+    f = np.asarray(freqs, dtype=float)
+    n = f.size
+    return mon.ModeTable(
+        ids=np.arange(1, n + 1),
+        frequency_hz=f,
+        frequency_std_hz=np.full(n, 1e-3) if stds is None else np.asarray(stds, float),
+        frequency_ci95_hz=np.column_stack([f - 2e-3, f + 2e-3]),
+        damping_ratio=np.full(n, 0.01),
+        damping_std=np.full(n, 1e-4),
+        damping_ci95=np.full((n, 2), 0.01),
+        physical=np.ones(n, bool) if physical is None else np.asarray(physical, bool),
+        shapes=np.eye(max(n, 3), dtype=complex)[:n] if shapes is None else shapes,
+        cluster=np.arange(n),
+    )
+
+
+# ------------------------------------------------------------------------------ unit
+
+
+def test_compare_flags_moved_missing_and_reshaped_modes_only():
+    base = table([5.0, 12.0, 20.0])
+    same = mon.compare(base, table([5.001, 12.002, 19.999]))
+    assert not same.flagged and [e.status for e in same.entries] == ["ok"] * 3
+
+    moved = mon.compare(base, table([5.0, 11.8, 20.0]))
+    assert moved.flagged
+    assert [(e.baseline_id, e.reasons) for e in moved.flagged_entries] == [(2, ["frequency"])]
+    assert moved.flagged_entries[0].allowed_shift_hz == pytest.approx(0.0025 * 12.0)
+
+    # listed out of order and with mode 2 gone: the assignment still pairs 5-5 and 20-20
+    gone = mon.compare(base, table([20.0, 5.0], shapes=np.eye(3, dtype=complex)[[2, 0]]))
+    assert {e.baseline_id: e.status for e in gone.entries} == {1: "ok", 2: "missing", 3: "ok"}
+    assert gone.flagged
+
+    shapes = np.eye(3, dtype=complex)
+    shapes[1] = [0.6, 0.8, 0.0]  # MAC 0.64 with the baseline's second shape
+    reshaped = mon.compare(base, table([5.0, 12.0, 20.0], shapes=shapes))
+    assert [(e.baseline_id, e.reasons) for e in reshaped.flagged_entries] == [(2, ["shape"])]
+
+    extra = mon.compare(base, table([5.0, 12.0, 20.0, 27.0], shapes=np.eye(4)[:, :3]))
+    assert not extra.flagged and extra.entries[-1].status == "new"
+
+
+def test_compare_uses_the_bootstrap_spread_and_ignores_non_physical_modes():
+    base = table([10.0], stds=[0.02])
+    wide = mon.compare(base, table([10.12], stds=[0.02]))  # 0.12 Hz < 5 x 0.028
+    assert not wide.flagged
+    narrow = mon.compare(table([10.0], stds=[1e-4]), table([10.12], stds=[1e-4]))
+    assert narrow.flagged
+    hidden = mon.compare(base, table([10.0], physical=[False]))
+    assert hidden.entries[0].status == "missing" and "not called physical" in hidden.entries[0].message
+
+
+def test_compare_refuses_shapes_on_other_channels():
+    with pytest.raises(ValueError, match="channels"):
+        mon.compare(table([5.0]), table([5.0], shapes=np.ones((1, 4), complex)))
+
+
+def test_report_time_prefers_the_test_date():
+    report = {"created": "2026-05-01T00:00:00Z", "input": {"attributes": {"date": "2024-05-01T10:30:00"}}}
+    assert mon.report_time(report) == ("2024-05-01T10:30:00Z", "test_date")
+    report["input"]["attributes"] = {"date": "yesterday"}
+    assert mon.report_time(report) == ("2026-05-01T00:00:00Z", "created")
+
+
+def test_report_stems_avoid_collisions():
+    stems = report_stems([Path("a/x.h5"), Path("a/x.uff"), Path("a/y.h5"), Path("b/y.h5")])
+    assert stems == ["x.h5", "x.uff", "y.h5", None]
+
+
+# ------------------------------------------------------------------------------ must show
+
+
+def test_remeasured_structure_passes_and_softer_spring_is_flagged(site, tmp_path):
+    again = cli("identify", site["incoming"] / "m01.h5", "-o", tmp_path / "again.json",
+                "--baseline", site["baseline"], *BOOTSTRAP)
+    assert again.exit_code == 0, again.output
+    block = read_report(tmp_path / "again.json")["monitoring"]
+    assert block["flagged"] is False and block["n_flagged"] == 0
+    assert block["baseline"]["path"] == str(site["baseline"])
+    assert {e["status"] for e in block["modes"]} == {"ok"}
+
+    softer = cli("identify", site["incoming"] / f"m{FIRST_DAMAGED:02d}.h5", "-o",
+                 tmp_path / "softer.json", "--baseline", site["baseline"], *BOOTSTRAP)
+    assert softer.exit_code == 3, softer.output
+    block = read_report(tmp_path / "softer.json")["monitoring"]
+    assert block["flagged"] is True
+    moved = {e["baseline_id"]: e for e in block["modes"] if e["flagged"]}
+    # the softer spring lowers every mode of the 3-DOF chain by 0.6-2.7 %
+    true_shift = (sim.natural_frequencies_hz(DAMAGED) / sim.natural_frequencies_hz(HEALTHY) - 1)
+    assert len(moved) == int(np.sum(np.abs(true_shift) > 0.004)) == 3
+    for entry in moved.values():
+        assert entry["reasons"] == ["frequency"] and entry["relative_shift"] < -0.004
+        assert f"mode {entry['baseline_id']} (" in softer.stdout
+    shifts = sorted(e["relative_shift"] for e in moved.values())
+    np.testing.assert_allclose(shifts, sorted(true_shift), atol=1e-3)
+
+    quiet = cli("identify", site["incoming"] / f"m{FIRST_DAMAGED:02d}.h5", "--baseline",
+                site["baseline"], "-q", *BOOTSTRAP)
+    assert quiet.exit_code == 3 and quiet.stdout == ""
+
+
+def test_batch_with_a_corrupt_file_reports_the_good_ones_and_exits_2(site, tmp_path):
+    folder = tmp_path / "in"
+    folder.mkdir()
+    for name in ("m01.h5", "m02.h5"):
+        shutil.copy(site["incoming"] / name, folder / name)
+    (folder / "m03.h5").write_bytes(b"\x89HDF\r\n\x1a\n truncated")
+    out = tmp_path / "out"
+
+    run = cli("identify", folder, "-o", out, "--format", "both", *BOOTSTRAP)
+    assert run.exit_code == 2, run.output
+    assert sorted(p.name for p in out.iterdir()) == [
+        "m01.h5", "m01.json", "m02.h5", "m02.json", "summary.csv", "summary.json"]
+    assert run.stderr.count("\n") == 1 and "m03.h5" in run.stderr
+    summary = json.loads((out / "summary.json").read_text())
+    status = {Path(f["file"]).name: f for f in summary["files"]}
+    assert [status[n]["status"] for n in ("m01.h5", "m02.h5", "m03.h5")] == ["ok", "ok", "failed"]
+    assert status["m03.h5"]["error"] and "\n" not in status["m03.h5"]["error"]
+    assert status["m01.h5"]["n_physical"] == 3 and len(status["m01.h5"]["frequencies_hz"]) == 3
+    rows = list(csv.DictReader((out / "summary.csv").open()))
+    assert [r["status"] for r in rows] == ["ok", "ok", "failed"]
+    assert rows[0]["test_date"] == "2026-03-01T06:00:00Z" and len(rows[0]["frequencies_hz"].split()) == 3
+
+    before = (out / "m01.json").stat().st_mtime_ns
+    again = cli("identify", str(folder / "*.h5"), "-o", out, "--format", "both", "-q", *BOOTSTRAP)
+    assert again.exit_code == 2 and again.stdout == ""
+    summary = json.loads((out / "summary.json").read_text())
+    assert [f["status"] for f in summary["files"]] == ["skipped", "skipped", "failed"]
+    assert (out / "m01.json").stat().st_mtime_ns == before
+
+    (folder / "m03.h5").unlink()
+    forced = cli("identify", folder, "-o", out, "--force", "-q", "--jobs", "1", *BOOTSTRAP)
+    assert forced.exit_code == 0, forced.output
+    assert json.loads((out / "summary.json").read_text())["counts"]["ok"] == 2
+
+
+def test_history_of_ten_measurements_flags_from_the_seventh_on(site, tmp_path):
+    reports = tmp_path / "reports"
+    run = cli("identify", site["incoming"], "-o", reports, "--baseline", site["baseline"],
+              "-q", *BOOTSTRAP)
+    assert run.exit_code == 3, run.output
+    summary = json.loads((reports / "summary.json").read_text())
+    expected = ["ok"] * (FIRST_DAMAGED - 1) + ["flagged"] * (N_MEASUREMENTS - FIRST_DAMAGED + 1)
+    assert [f["status"] for f in summary["files"]] == expected
+
+    history_path = tmp_path / "history.h5"
+    tracked = cli("track", reports, "--baseline", site["baseline"], "-o", history_path)
+    assert tracked.exit_code == 0, tracked.output
+    history = read_history(history_path)
+    assert history.times[0] == "2026-03-01T06:00:00Z" and set(history.time_sources) == {"test_date"}
+    assert history.flagged.tolist() == [k >= FIRST_DAMAGED for k in range(1, N_MEASUREMENTS + 1)]
+    assert history.n_modes == 3 and not history.missing.any()
+    assert np.all(np.isfinite(history.frequency_hz)) and np.all(history.frequency_std_hz > 0)
+    assert history.mode_flagged[FIRST_DAMAGED - 1:].all()
+
+    figure = tmp_path / "trend.png"
+    drawn = cli("plot", history_path, "-o", figure)
+    assert drawn.exit_code == 0, drawn.output
+    assert figure.stat().st_size > 10_000
+
+
+def test_history_file_round_trip_and_plot_gids(tmp_path):
+    base = {"created": "2026-01-01T00:00:00Z", "modes": [
+        _mode(1, 5.0), _mode(2, 12.0)]}
+    later = [{"created": f"2026-01-0{d}T00:00:00Z", "modes": [_mode(1, 5.0), _mode(2, f)]}
+             for d, f in ((2, 12.0), (3, 11.5))]
+    history = mon.build_history(later[::-1], ["day3.json", "day2.json"], base, "base.json")
+    assert history.labels == ["day2.json", "day3.json"]  # sorted by time
+    assert history.mode_flagged.tolist() == [[False, False], [False, True]]
+    path = write_history(tmp_path / "h.h5", history)
+    assert is_history_file(path) and not is_history_file(tmp_path / "nothing.h5")
+    back = read_history(path)
+    assert back.times == history.times and back.labels == history.labels
+    np.testing.assert_array_equal(back.frequency_hz, history.frequency_hz)
+    assert back.thresholds == history.thresholds
+
+    from automodal.plots import trend
+
+    fig = trend(back)
+    gids = {c.get_gid() for ax in fig.axes for c in ax.collections}
+    assert "flagged" in gids
+
+
+def _mode(i: int, f: float) -> dict:
+    return {"id": i, "frequency_hz": f, "frequency_std_hz": 1e-3,
+            "frequency_ci95_hz": [f - 2e-3, f + 2e-3], "damping_ratio": 0.01,
+            "damping_std": 1e-4, "damping_ci95": [0.0098, 0.0102], "physical": True,
+            "mode_shape": {"real": [1.0 if k == i else 0.0 for k in (1, 2)], "imag": [0.0, 0.0]}}
+
+
+def test_bad_batch_usage_exits_2(site, tmp_path):
+    no_out = cli("identify", site["incoming"])
+    assert no_out.exit_code == 2 and "-o OUTDIR" in no_out.stderr
+    nothing = cli("identify", str(tmp_path / "*.h5"), "-o", tmp_path / "out")
+    assert nothing.exit_code == 2 and "no input file" in nothing.stderr
+    single = cli("identify", site["incoming"] / "m01.h5", "--dask-scheduler", "tcp://x:1")
+    assert single.exit_code == 2 and "batch" in single.stderr
+    bad_base = cli("identify", site["incoming"] / "m01.h5", "--baseline", tmp_path / "no.json")
+    assert bad_base.exit_code == 2 and "no.json" in bad_base.stderr
+
+
+def test_batch_on_a_dask_cluster(site, tmp_path):
+    distributed = pytest.importorskip("dask.distributed")
+    files = expand_inputs(str(site["incoming"] / "m0[12].h5"))
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
+                                  dashboard_address=None) as cluster:
+        result = run_batch(files, tmp_path, Settings(n_bootstrap=20),
+                           scheduler_address=cluster.scheduler_address)
+    assert [o.status for o in result.outcomes] == ["ok", "ok"]
+    assert (tmp_path / "m01.json").is_file() and (tmp_path / "m02.json").is_file()
+    assert json.loads(result.summary_json.read_text())["counts"]["ok"] == 2
