@@ -193,7 +193,8 @@ def expand_inputs(spec: str, exclude: str | os.PathLike[str] | None = None) -> l
     skip = Path(exclude).resolve() if exclude is not None else None
     files = [
         f for f in found
-        if f.is_file() and not f.name.startswith(".") and (skip is None or f.resolve().parent != skip)
+        if f.is_file() and not f.name.startswith(".")
+        and (skip is None or f.resolve().parent != skip)
     ]
     return sorted(files, key=lambda f: str(f))
 

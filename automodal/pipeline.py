@@ -61,6 +61,9 @@ class Settings:
         Physicalness from which a cluster is called physical.
     coalescence : float
         Poles closer than this many half-power bandwidths form one group.
+    resample : {"auto", "lines", "records"}
+        What a bootstrap replicate resamples: the repeated records when the data have
+        at least two (``"auto"``), or the frequency lines.
     """
 
     band_hz: tuple[float, float] | None = None
@@ -72,6 +75,7 @@ class Settings:
     zeta_max: float = 0.2
     min_physicalness: float = 0.5
     coalescence: float = 1.0
+    resample: str = "auto"
 
     def to_dict(self) -> dict[str, Any]:
         """Plain-JSON form (``jobs`` left out: it never changes the result)."""
@@ -309,6 +313,86 @@ def _replicate_flops(m: int, n: int) -> float:
     return 9.0 * m**3 + 25.0 * n**3
 
 
+def band_records(
+    data: FRFData, freq: np.ndarray, reciprocal: bool, resample: str
+) -> np.ndarray | None:
+    """The repeated records over the analysed lines (oriented like the analysed FRF), or
+    ``None`` when the replicates resample frequency lines."""
+    if resample not in ("auto", "lines", "records"):
+        raise ValueError(f"unknown resample {resample!r}")
+    rec = data.records
+    usable = rec is not None and rec.shape[0] >= 2
+    if resample == "records" and not usable:
+        raise InputError("resampling records needs at least two records (/records/frf)",
+                         data.source)
+    if resample == "lines" or not usable:
+        return None
+    rec = rec[:, np.isin(data.frequency, freq)]
+    return np.ascontiguousarray(rec.transpose(0, 1, 3, 2)) if reciprocal else rec
+
+
+def _record_chunk(
+    records: np.ndarray,
+    weights: np.ndarray,
+    n: int,
+    basis: subspace.RowBasis,
+    T: float,
+    line_weights: np.ndarray,
+) -> list[bootstrap.ReplicateModes]:
+    """Identify record replicates (run in a worker process, one BLAS thread)."""
+    from threadpoolctl import threadpool_limits
+
+    ny = records.shape[2]
+    out = []
+    with threadpool_limits(1):
+        for w in weights:
+            H = np.einsum("r,rkij->kij", w / w.sum(), records)
+            if basis.monomial:
+                S = subspace.schur_complement(subspace.gram_sums(basis, H, line_weights))
+            else:
+                S = subspace.schur_from_data(basis, H, line_weights)
+            out.append(
+                bootstrap.replicate_from_schur(S, n, basis, T, ny, qr_data=(H, line_weights))
+            )
+    return out
+
+
+def run_record_replicates(
+    basis: subspace.RowBasis,
+    records: np.ndarray,
+    n: int,
+    T: float,
+    weights: np.ndarray,
+    line_weights: np.ndarray,
+    jobs: int | None,
+    progress: Callable[[int], None] | None = None,
+) -> list[bootstrap.ReplicateModes]:
+    """Replicates that each average a resample of the repeated records.
+
+    The Gram sums are not linear in the FRF, so each replicate forms its own; like
+    :func:`run_replicates`, the result does not depend on ``jobs``.
+    """
+    B = weights.shape[0]
+    ny = records.shape[2]
+    n_jobs = _n_jobs(jobs, B, _replicate_flops(basis.q * ny, n) * B)
+    chunk = max(1, int(np.ceil(B / (4 * n_jobs))))
+    rows = [slice(i, min(B, i + chunk)) for i in range(0, B, chunk)]
+    results: list[bootstrap.ReplicateModes] = []
+    if n_jobs == 1:
+        parts = (_record_chunk(records, weights[r], n, basis, T, line_weights) for r in rows)
+    else:
+        from joblib import Parallel, delayed
+
+        parts = Parallel(n_jobs=n_jobs, return_as="generator")(
+            delayed(_record_chunk)(records, weights[r], n, basis, T, line_weights) for r in rows
+        )
+    for r, part in zip(rows, parts):
+        results.extend(part)
+        if progress:
+            progress(r.stop - r.start)
+    return results
+
+
 def _n_jobs(jobs: int | None, n_tasks: int, flops: float = np.inf) -> int:
     """Processes to use: ``jobs`` if given, else all cores when the work pays for them."""
     import os
@@ -422,12 +506,23 @@ def identify(
 
     # -- bootstrap ------------------------------------------------------------------
     rng = np.random.default_rng(s.seed)
-    weights = bootstrap.line_weights(N, s.n_bootstrap, rng) * lw[None, :]
-    reps = run_replicates(basis, Hs, n_hi, T, weights, s.jobs, progress)
-    warnings.append(
-        "bootstrap over frequency lines: the spread is conditional on the one noise"
-        " realization in the data"
-    )
+    records = band_records(data, freq, reciprocal, s.resample)
+    if records is not None:
+        rw = bootstrap.record_weights(records.shape[0], s.n_bootstrap, rng)
+        reps = run_record_replicates(
+            basis, records / scales[None, None, :, None], n_hi, T, rw, lw, s.jobs, progress
+        )
+        warnings.append(
+            f"bootstrap over the {records.shape[0]} repeated records (each replicate averages"
+            " a resample of them): the spread reflects the records' own noise"
+        )
+    else:
+        weights = bootstrap.line_weights(N, s.n_bootstrap, rng) * lw[None, :]
+        reps = run_replicates(basis, Hs, n_hi, T, weights, s.jobs, progress)
+        warnings.append(
+            "bootstrap over frequency lines: the spread is conditional on the one noise"
+            " realization in the data"
+        )
     n_qr = sum(r.path == "qr" for r in reps)
     replicate = np.concatenate([np.full(len(r.poles), b) for b, r in enumerate(reps)]).astype(int)
     poles = np.concatenate([r.poles for r in reps]) + decay if reps else np.zeros(0, complex)

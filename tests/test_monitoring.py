@@ -129,7 +129,8 @@ def test_compare_uses_the_bootstrap_spread_and_ignores_non_physical_modes():
     narrow = mon.compare(table([10.0], stds=[1e-4]), table([10.12], stds=[1e-4]))
     assert narrow.flagged
     hidden = mon.compare(base, table([10.0], physical=[False]))
-    assert hidden.entries[0].status == "missing" and "not called physical" in hidden.entries[0].message
+    assert hidden.entries[0].status == "missing"
+    assert "not called physical" in hidden.entries[0].message
 
 
 def test_compare_refuses_shapes_on_other_channels():
@@ -138,7 +139,8 @@ def test_compare_refuses_shapes_on_other_channels():
 
 
 def test_report_time_prefers_the_test_date():
-    report = {"created": "2026-05-01T00:00:00Z", "input": {"attributes": {"date": "2024-05-01T10:30:00"}}}
+    report = {"created": "2026-05-01T00:00:00Z",
+              "input": {"attributes": {"date": "2024-05-01T10:30:00"}}}
     assert mon.report_time(report) == ("2024-05-01T10:30:00Z", "test_date")
     report["input"]["attributes"] = {"date": "yesterday"}
     assert mon.report_time(report) == ("2026-05-01T00:00:00Z", "created")
@@ -201,7 +203,8 @@ def test_batch_with_a_corrupt_file_reports_the_good_ones_and_exits_2(site, tmp_p
     assert status["m01.h5"]["n_physical"] == 3 and len(status["m01.h5"]["frequencies_hz"]) == 3
     rows = list(csv.DictReader((out / "summary.csv").open()))
     assert [r["status"] for r in rows] == ["ok", "ok", "failed"]
-    assert rows[0]["test_date"] == "2026-03-01T06:00:00Z" and len(rows[0]["frequencies_hz"].split()) == 3
+    assert rows[0]["test_date"] == "2026-03-01T06:00:00Z"
+    assert len(rows[0]["frequencies_hz"].split()) == 3
 
     before = (out / "m01.json").stat().st_mtime_ns
     again = cli("identify", str(folder / "*.h5"), "-o", out, "--format", "both", "-q", *BOOTSTRAP)

@@ -344,7 +344,6 @@ def compare(
     """
     th = thresholds or Thresholds()
     base = baseline.subset(baseline.physical & np.isfinite(baseline.frequency_hz))
-    cur_all = current
     cur = current.subset(current.physical & np.isfinite(current.frequency_hz))
     base = base.subset(np.argsort(base.frequency_hz, kind="stable"))
     cur = cur.subset(np.argsort(cur.frequency_hz, kind="stable"))
@@ -361,7 +360,7 @@ def compare(
     for i in range(base.n_modes):
         j = partner.get(i)
         if j is None:
-            entries.append(_missing_entry(base, i, cur_all, th))
+            entries.append(_missing_entry(base, i, current, th))
         else:
             entries.append(_matched_entry(base, i, cur, j, float(macs[i, j]), th))
     matched = set(partner.values())
@@ -415,8 +414,9 @@ def cluster_mac(base: ModeTable, cur: ModeTable) -> np.ndarray:
     """
     out = np.full((base.n_modes, cur.n_modes), np.nan)
     a = base.shapes
-    good_a = np.all(np.isfinite(a), axis=1) & (np.linalg.norm(a, axis=1) > 0) if a.size else \
-        np.zeros(base.n_modes, bool)
+    if a.shape[1] == 0 or cur.shapes.shape[1] != a.shape[1]:
+        return out
+    good_a = np.all(np.isfinite(a), axis=1) & (np.linalg.norm(a, axis=1) > 0)
     for c in np.unique(cur.cluster):
         members = np.flatnonzero(cur.cluster == c)
         span = cur.shapes[members]
