@@ -215,8 +215,8 @@ def scan(
     z: np.ndarray, H: np.ndarray, weights: np.ndarray, n_max: int, n_peaks: int
 ) -> tuple[np.ndarray, np.ndarray]:
     """The misfit scan, in stages: up to ``max(2 n_peaks + 40, 60)`` states first, and
-    twice as far (with the block rows that order needs) while the misfit still improves
-    at the end of a stage, up to ``n_max``. Small systems pay only for a small projection;
+    twice as far (with the block rows that order needs) while the misfit still falls at
+    the end of a stage (:func:`automodal.core.order.still_falling`), up to ``n_max``. Small systems pay only for a small projection;
     systems with many overlapping modes (80 modes, 22 visible peaks) still reach their order.
     """
     N, ny, nu = H.shape
@@ -229,7 +229,9 @@ def scan(
         orders, misfit = order.misfit_scan(
             z, H, planned, basis, weights=weights, stop_after=2 * n_peaks + 40
         )
-        if orders.size < planned.size or stage >= n_max or order.plateaued(orders, misfit):
+        if orders.size < planned.size or stage >= n_max or not order.still_falling(
+            orders, misfit
+        ):
             return orders, misfit
         stage = min(n_max, 2 * stage)
 
@@ -271,10 +273,15 @@ def run_replicates(
     The result does not depend on ``jobs``: each replicate is computed the same way, with
     one BLAS thread, and results are gathered in replicate order.
     """
-    sums = subspace.gram_sums(basis, H, weights)
+    import os
+
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(os.cpu_count() or 1):  # the one large product: every core
+        sums = subspace.gram_sums(basis, H, weights)
     B = weights.shape[0]
     n_jobs = _n_jobs(jobs, B, _replicate_flops(basis.q * H.shape[1], n) * B)
-    chunk = max(1, int(np.ceil(B / (4 * n_jobs)))) if n_jobs > 1 else max(1, B // 20 or 1)
+    chunk = max(1, int(np.ceil(B / (4 * n_jobs)))) if n_jobs > 1 else max(1, int(np.ceil(B / 5)))
     rows = [range(i, min(B, i + chunk)) for i in range(0, B, chunk)]
 
     def sub(r: range) -> subspace.GramSums:
@@ -445,8 +452,20 @@ def identify(
     -------
     Result
     """
+    from threadpoolctl import threadpool_limits
+
+    # One BLAS thread for the many small dense problems (measured: 0.75 s against 0.9 s
+    # end to end on a 6-DOF chain, and far steadier on a busy machine); the one large
+    # product, the replicates' Gram sums, gets every core (run_replicates).
+    with threadpool_limits(1):
+        return _identify(data, settings or Settings(), progress)
+
+
+def _identify(
+    data: FRFData, s: Settings, progress: Callable[[int], None] | None
+) -> Result:
+    """:func:`identify` with BLAS limited by the caller."""
     t0 = time.perf_counter()
-    s = settings or Settings()
     warnings: list[str] = []
     freq, H, band = select_band(data, s.band_hz, warnings)
     H, reciprocal = apply_reciprocity(H, warnings)

@@ -43,7 +43,6 @@ from dataclasses import asdict, dataclass, field
 from typing import Any
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
 
 __all__ = [
     "DATE_KEYS",
@@ -454,6 +453,8 @@ def match(
     allowed = rel <= thresholds.match_max_relative_shift
     allowed &= np.isnan(macs) | (np.nan_to_num(macs) >= thresholds.match_min_mac)
     cost = np.where(allowed, cost, _INADMISSIBLE)
+    from scipy.optimize import linear_sum_assignment  # imported here: it is slow to load
+
     rows, cols = linear_sum_assignment(cost)
     return [(int(i), int(j)) for i, j in zip(rows, cols) if allowed[i, j]]
 

@@ -127,6 +127,24 @@ def misfit_scan(
     return np.asarray(orders[: len(out)]), np.asarray(out)
 
 
+def still_falling(orders: np.ndarray, misfit, share: float = 0.05) -> bool:
+    """Whether the best misfit fell by more than ``share`` of its whole fall over the last
+    third of the scanned orders (then a scan should go further).
+
+    On an 80-mode, 40-output grid the misfit fell steadily (3.4 to 1.6 by order 84, 14 %
+    of the fall in the last third) while improving by less than 10 % per 24 states, which
+    :func:`plateaued` read as a floor; the true order was 160.
+    """
+    orders = np.asarray(orders)
+    best = np.minimum.accumulate(np.where(np.isfinite(misfit), misfit, np.inf))
+    if orders.size < 3 or not np.isfinite(best[-1]):
+        return False
+    total = float(np.max(best[np.isfinite(best)]) - best[-1])
+    cut = orders[-1] - (orders[-1] - orders[0]) / 3.0
+    before = best[orders <= cut][-1]
+    return bool(total > 0 and (before - best[-1]) > share * total)
+
+
 def plateaued(orders: np.ndarray, misfit, patience: int = 24) -> bool:
     """Whether the best misfit has not improved by 10 % over the last ``patience`` states."""
     orders = np.asarray(orders)
