@@ -354,10 +354,7 @@ def _record_chunk(
     with threadpool_limits(1):
         for w in weights:
             H = np.einsum("r,rkij->kij", w / w.sum(), records)
-            if basis.monomial:
-                S = subspace.schur_complement(subspace.gram_sums(basis, H, line_weights))
-            else:
-                S = subspace.schur_from_data(basis, H, line_weights)
+            S = subspace.single_schur(basis, H, line_weights)
             out.append(
                 bootstrap.replicate_from_schur(S, n, basis, T, ny, qr_data=(H, line_weights))
             )

@@ -394,14 +394,17 @@ def summary_lines(stats) -> list[str]:
     best = stats[int(np.argmax(obs))]["key"]
     worst_ang = stats[int(np.argmax(ang))]["key"]
     fallback = sum(s["auto"] == "qr" for s in stats)
+    kept = [s["angle"] for s in stats if s["auto"] == "gram"]
+    gram_ang = max(kept) if kept else float("nan")
     return [
         f"- observability step, QR/Gram: median {np.median(obs):.2f}x, "
         f"best {obs.max():.2f}x at (N, ny, nu, n) = {best}, worst {obs.min():.2f}x at {worst}; "
         f"Gram faster in {int(np.sum(obs > 1))} of {obs.size} sizes",
         f"- whole identify, QR/Gram: median {np.median(idn):.2f}x, "
         f"range {idn.min():.2f}x .. {idn.max():.2f}x",
-        f"- largest principal angle between the two subspaces: {ang.max():.1e} rad at {worst_ang}; "
-        f"median {np.median(ang):.1e} rad",
+        f"- largest principal angle between the two subspaces: {ang.max():.1e} rad at "
+        f"{worst_ang}; median {np.median(ang):.1e} rad; largest where method='auto' keeps "
+        f"the Gram path: {gram_ang:.1e} rad",
         f"- sizes where method='auto' would fall back to QR (Gram eigenvalue ratio below "
         f"GRAM_MIN_EIG_RATIO): {fallback} of {len(stats)}",
     ]
@@ -450,9 +453,10 @@ def main(argv: list[str] | None = None) -> int:
     out.append(markdown(MAIN_HEADER, rows))
     out.append("")
     notes = summary_lines(stats)
-    if any(r[1] == "1" for r in rows):
-        notes.append("- ny = 1 uses q = n + 1 block rows (201 at n = 200): the QR path then "
-                      "factors a q(nu+1) x 2 N nu matrix; timed anyway")
+    siso_q = [int(r[4]) for r in rows if r[1] == "1"]
+    if siso_q:
+        notes.append(f"- ny = 1 uses q = n + 1 block rows (up to {max(siso_q)} here): the QR "
+                     "path then factors a q(nu+1) x 2 N nu matrix; timed anyway")
     if skipped:
         notes.append("- skipped (2 N nu < q (nu + ny)): " + ", ".join(
             f"N={a} ny={b} nu={c} n={d} (q={e})" for a, b, c, d, e in skipped))

@@ -30,7 +30,25 @@ import numpy as np
 from automodal.errors import InputError
 from automodal.frfdata import FRFData
 
-__all__ = ["READERS", "check_frf_arrays", "check_is_file", "read_any"]
+__all__ = [
+    "MAX_TEXT_BYTES",
+    "MAX_VALUES",
+    "READERS",
+    "check_frf_arrays",
+    "check_is_file",
+    "check_size",
+    "read_any",
+]
+
+MAX_VALUES = 2**26
+"""Most numbers a reader loads from one file's arrays (67 108 864: 1 GiB as complex128,
+e.g. 10^6 lines of 64 FRFs). A file that declares more is refused before anything is read,
+so that a hostile or mistaken file (a huge dataset that was never written, a zip bomb)
+cannot exhaust the memory."""
+
+MAX_TEXT_BYTES = 2**29
+"""Largest text file (CSV, UFF) a reader parses: 512 MiB. Parsing text costs several times
+the file's size in memory, so a larger text file is refused before it is read."""
 
 READERS: dict[str, tuple[str, str]] = {
     ".h5": ("automodal.io.readers", "read_hdf5"),
@@ -141,6 +159,28 @@ def check_is_file(path: Path, source: str) -> None:
         raise InputError("no such file", source)
     if path.is_dir():
         raise InputError("is a folder, not an input file", source)
+
+
+def check_size(n_values: int, what: str, source: str) -> None:
+    """Refuse an array (or a file's arrays) of more than :data:`MAX_VALUES` numbers.
+
+    Parameters
+    ----------
+    n_values : int
+        How many numbers would be read.
+    what : str
+        What holds them, for the message (``"/frf (shape (...))"``).
+    source : str
+        The file, for the message.
+
+    Raises
+    ------
+    InputError
+        If ``n_values`` exceeds :data:`MAX_VALUES`.
+    """
+    if n_values > MAX_VALUES:
+        raise InputError(f"{what} holds {n_values} values, more than the {MAX_VALUES} a reader "
+                         "loads (too large to read safely)", source)
 
 
 def _has_hdf5_signature(path: Path) -> bool:

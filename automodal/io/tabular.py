@@ -19,17 +19,17 @@ NPZ layout (:func:`read_npz`): ``frequency`` (1-D, Hz), ``frf`` (complex, shape
 
 from __future__ import annotations
 
+import math
 import os
 import re
-import zipfile
 from pathlib import Path
-from typing import Any
+from typing import IO, Any
 
 import numpy as np
 
 from automodal.errors import InputError
 from automodal.frfdata import QUANTITIES, FRFData
-from automodal.io.readers import check_frf_arrays, check_is_file
+from automodal.io.readers import check_frf_arrays, check_is_file, check_size
 
 __all__ = ["read_csv", "read_npz"]
 
@@ -211,15 +211,16 @@ def read_npz(path: str | os.PathLike[str]) -> FRFData:
             raise InputError(f"a single .npy array, not an .npz archive; {_NPZ_LAYOUT}",
                              source)
         with loaded as archive:
-            arrays = {key: archive[key] for key in archive.files}
+            keys = list(archive.files)
+            arrays = _npz_arrays(archive, source)
     except InputError:
         raise
-    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
+    except Exception as exc:  # noqa: BLE001 - zipfile, zlib and numpy raise many kinds
         problem = " ".join(str(exc).split()) or type(exc).__name__
         raise InputError(f"cannot read as an .npz archive: {problem}", source) from exc
     missing = [key for key in ("frequency", "frf") if key not in arrays]
     if missing:
-        found = ", ".join(sorted(arrays)) or "none"
+        found = ", ".join(sorted(keys)) or "none"
         raise InputError(f"no key {' or '.join(map(repr, missing))} (keys found: {found}); "
                          f"{_NPZ_LAYOUT}", source)
     frequency = np.asarray(arrays["frequency"])
@@ -229,7 +230,7 @@ def read_npz(path: str | os.PathLike[str]) -> FRFData:
     if "quantity" in arrays:
         quantity = _npz_quantity(arrays["quantity"], source)
         attributes["quantity_source"] = "'quantity' key of the NPZ archive"
-    ignored = sorted(set(arrays) - {"frequency", "frf", "quantity"})
+    ignored = sorted(set(keys) - set(_NPZ_KEYS))
     if ignored:
         attributes["ignored_keys"] = ", ".join(ignored)
     if frequency.dtype.kind not in "fiu":
@@ -238,6 +239,46 @@ def read_npz(path: str | os.PathLike[str]) -> FRFData:
     frequency, frf = check_frf_arrays(frequency, frf, source)
     return FRFData(frequency=frequency, frf=frf, quantity=quantity, attributes=attributes,
                    source=source)
+
+
+_NPZ_KEYS = ("frequency", "frf", "quantity")
+"""The members of an NPZ archive that are read (others are only named)."""
+
+
+def _npz_arrays(archive: np.lib.npyio.NpzFile, source: str) -> dict[str, np.ndarray]:
+    """The members :data:`_NPZ_KEYS` of an open archive, as arrays.
+
+    Their ``.npy`` headers are checked first: a member that is not an ``.npy`` array is
+    refused, and so are members that declare more than
+    :data:`~automodal.io.readers.MAX_VALUES` numbers in all, before anything is loaded (a
+    small compressed archive may declare or hold a huge array). Other members are not read.
+    """
+    names = set(archive.zip.namelist())
+    total = 0
+    for key in _NPZ_KEYS:
+        member = key if key in names else f"{key}.npy" if f"{key}.npy" in names else None
+        if member is None:
+            continue
+        with archive.zip.open(member) as fp:
+            shape = _npy_shape(fp)
+        if shape is None:
+            raise InputError(f"the member {key!r} is not a .npy array; {_NPZ_LAYOUT}", source)
+        total += math.prod(shape)
+    check_size(total, "the archive ('frequency', 'frf', 'quantity')", source)
+    return {key: archive[key] for key in _NPZ_KEYS if key in archive}
+
+
+def _npy_shape(fp: IO[bytes]) -> tuple[int, ...] | None:
+    """The shape an ``.npy`` stream declares in its header, None when it is not one."""
+    try:
+        version = np.lib.format.read_magic(fp)
+        if version == (1, 0):
+            shape, _, _ = np.lib.format.read_array_header_1_0(fp)
+        else:
+            shape, _, _ = np.lib.format.read_array_header_2_0(fp)
+    except ValueError:
+        return None
+    return tuple(int(n) for n in shape)
 
 
 def _npz_frf(frf: np.ndarray, frequency: np.ndarray, source: str) -> np.ndarray:
