@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from automodal import __version__
-from automodal.core import bootstrap, clustering, order, physicalness, subspace
+from automodal.core import bootstrap, checks, clustering, order, physicalness, subspace
 from automodal.core.bilinear import default_scale, poles_d2c, to_unit_circle
 from automodal.core.correlation import moc_vectors
 from automodal.core.modal import ModeSet, modes_of_discrete, mpc, normalise_shapes, unit_max_shapes
@@ -465,6 +465,7 @@ def _identify(
     t0 = time.perf_counter()
     warnings: list[str] = []
     freq, H, band = select_band(data, s.band_hz, warnings)
+    data, freq, H = checks.prepare(data, freq, H, warnings)
     H, reciprocal = apply_reciprocity(H, warnings)
     N, ny, nu = H.shape
     omega = 2.0 * np.pi * freq

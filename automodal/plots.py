@@ -293,8 +293,12 @@ def mode_shapes(
     """
     modes = _physical_modes(report)
     inp = report.get("input", {})
+    directions = inp.get("output_directions")
     if xyz is None and inp.get("output_xyz") is not None and not inp.get("reciprocity"):
-        xyz = np.array(inp["output_xyz"], dtype=float)
+        rows = _shape_outputs(inp, len(inp["output_xyz"]))  # outputs the run kept
+        xyz = np.array(inp["output_xyz"], dtype=float)[rows]
+        directions = None if directions is None else [directions[i] for i in rows
+                                                      if i < len(directions)]
     geometry = xyz is not None
     if geometry and modes:
         xyz = np.asarray(xyz, dtype=float)
@@ -312,8 +316,7 @@ def mode_shapes(
         shape = _shape(mode)
         if geometry:
             ax = fig.add_subplot(n_rows, n_cols, k + 1, projection="3d")
-            _draw_geometry(ax, xyz, shape.real,
-                           _direction_vectors(inp.get("output_directions"), shape.size))
+            _draw_geometry(ax, xyz, shape.real, _direction_vectors(directions, shape.size))
         else:
             ax = fig.add_subplot(n_rows, n_cols, k + 1)
             _draw_shape_bars(ax, shape, _shape_channel_names(report, shape.size), k == 0)
@@ -723,6 +726,17 @@ def _shape(mode: Mapping[str, Any]) -> np.ndarray:
     real = np.array([v if v is not None else 0.0 for v in shape.get("real", [])], dtype=float)
     imag = np.array([v if v is not None else 0.0 for v in shape.get("imag", [])], dtype=float)
     return real + 1j * imag
+
+
+def _shape_outputs(inp: Mapping[str, Any], n: int) -> list[int]:
+    """Indices of the ``n`` outputs that the mode shapes cover: those named in
+    ``mode_shape_channels`` when the run left some out (dead or identical channels, see
+    :mod:`automodal.core.checks`), else all."""
+    names = [str(s) for s in inp.get("output_names") or []]
+    kept = [str(s) for s in inp.get("mode_shape_channels") or []]
+    if len(names) == n and 0 < len(kept) < n and all(k in names for k in kept):
+        return [names.index(k) for k in kept]
+    return list(range(n))
 
 
 def _direction_vectors(directions: Sequence[str] | None, n: int) -> np.ndarray:

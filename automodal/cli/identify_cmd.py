@@ -2,7 +2,11 @@
 
 from __future__ import annotations
 
+import os
 import sys
+import warnings
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -19,7 +23,7 @@ from automodal.errors import InputError
 
 if TYPE_CHECKING:
     from automodal.batch import FileOutcome
-    from automodal.pipeline import Settings
+    from automodal.pipeline import Result, Settings
 
 REPORT_SUFFIXES = (".json", ".h5", ".hdf5")
 
@@ -33,6 +37,45 @@ def _check_outputs(outputs: tuple[str, ...]) -> None:
         parent = Path(out).parent
         if not parent.is_dir():
             raise InputError("the report's folder does not exist", out)
+        if not os.access(parent, os.W_OK | os.X_OK):
+            raise InputError("the report's folder is not writable", out)
+
+
+def _save(out: str, report: dict, result: Result) -> None:
+    """Write the report ``out`` (atomically: whole or not at all); a failure to write
+    (read-only folder, full disk) becomes an :class:`InputError` naming the report."""
+    from automodal.io.report import save_report
+
+    try:
+        save_report(out, report, result.poles, frf=result.frf_fit)
+    except OSError as exc:
+        reason = exc.strerror or " ".join(str(exc).split()) or type(exc).__name__
+        raise InputError(f"cannot write the report: {reason}", out) from exc
+
+
+@contextmanager
+def _quiet_warnings(debug: bool) -> Iterator[None]:
+    """Keep Python warnings off stderr (unless ``debug``), in this process and in the worker
+    processes it starts.
+
+    Stderr carries at most the one error line (cron mails whatever is printed); what
+    matters for a run is in the report's warnings. NumPy's RuntimeWarnings on extreme (but
+    accepted) data and libraries' notices would otherwise add lines.
+    """
+    if debug:
+        yield
+        return
+    saved = os.environ.get("PYTHONWARNINGS")
+    os.environ["PYTHONWARNINGS"] = "ignore"  # inherited by joblib's worker processes
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            yield
+    finally:
+        if saved is None:
+            os.environ.pop("PYTHONWARNINGS", None)
+        else:
+            os.environ["PYTHONWARNINGS"] = saved
 
 
 def read_input(path: str):
@@ -62,6 +105,8 @@ def _batch_outdir(outputs: tuple[str, ...]) -> Path:
                          str(out))
     if not out.parent.is_dir():
         raise InputError("the output folder's parent does not exist", str(out))
+    if out.is_dir() and not os.access(out, os.W_OK | os.X_OK):
+        raise InputError("the output folder is not writable", str(out))
     return out
 
 
@@ -156,6 +201,9 @@ def identify(
     are skipped. Exit status 2 when a file failed (the batch goes on), 3 when --baseline
     flagged a mode.
 
+    A report is written whole or not at all. One that cannot be written (a read-only
+    folder, a full disk) ends the run with exit status 2 and one line on stderr naming it.
+
     \b
     Examples:
       automodal identify sample_data/chain6.h5
@@ -164,7 +212,7 @@ def identify(
       automodal identify today.h5 -o today.json --baseline baseline.json
       automodal identify 'incoming/*.h5' -o reports/ --baseline baseline.json --quiet
     """
-    with exit_on_error(debug):
+    with exit_on_error(debug), _quiet_warnings(debug):
         from automodal.batch import is_batch_input
         from automodal.pipeline import Settings
 
@@ -187,7 +235,7 @@ def identify(
             sys.exit(_run_batch(input_path, outputs, settings, baseline, baseline_path,
                                 report_format, force, jobs, dask_scheduler, as_json, quiet))
         data = read_input(input_path)
-        from automodal.io.report import format_table, report_dict, save_report
+        from automodal.io.report import format_table, report_dict
         from automodal.pipeline import identify as run
 
         show_bar = not quiet and sys.stderr.isatty()
@@ -207,7 +255,7 @@ def identify(
                 raise InputError(f"cannot be checked against {baseline_path}: {exc}",
                                  input_path) from None
         for out in outputs:
-            save_report(out, report, result.poles, frf=result.frf_fit)
+            _save(out, report, result)
         if plot_dir:
             from automodal.plots import save_figures
 

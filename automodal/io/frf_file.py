@@ -7,6 +7,7 @@ The writer produces the same layout, atomically.
 
 from __future__ import annotations
 
+import math
 import os
 from pathlib import Path
 from typing import Any
@@ -17,6 +18,7 @@ import numpy as np
 from automodal.errors import InputError
 from automodal.frfdata import QUANTITIES, FRFData
 from automodal.io.atomic import atomic_path
+from automodal.io.readers import size_problem
 
 __all__ = ["FORMAT_NAME", "FORMAT_VERSION", "read_frf", "write_frf"]
 
@@ -64,8 +66,11 @@ def read_frf(path: str | os.PathLike[str]) -> FRFData:
         If the file is missing, not HDF5, truncated or damaged, or breaks the spec in any
         way a reader must refuse (missing or malformed ``/frf`` or ``/frequency``, non-finite
         values, frequencies not strictly increasing or negative, unknown ``quantity``, newer
-        ``version``, ...). The message is one line and names the file. Time-series input
-        (``/time`` without ``/frf``) is refused too: this reader does not support it yet.
+        ``version``, a ``window_decay_per_s`` attribute that is not a finite number >= 0,
+        a dataset of more than :data:`automodal.io.readers.MAX_VALUES` numbers, refused
+        before it is read, ...). The message is one line and names the file. Time-series
+        input (``/time`` without ``/frf``) is refused too: this reader does not support it
+        yet.
     """
     source = str(path)
     try:
@@ -98,7 +103,7 @@ def _read(path: Path, source: str) -> FRFData:
             output_directions=outputs["direction"],
             input_directions=inputs["direction"],
             output_xyz=_read_xyz(f, n_outputs),
-            attributes=_free_attributes(f.attrs),
+            attributes=_checked_attributes(_free_attributes(f.attrs)),
             source=source,
         )
 
@@ -178,13 +183,13 @@ def _read_frequency(f: h5py.File, n_freq: int) -> np.ndarray:
     ds = _dataset(f, "frequency")
     if ds is None:
         raise _Refused("no /frequency dataset")
-    freq = _real_array(ds, "/frequency")
-    if freq.ndim != 1:
-        raise _Refused(f"/frequency must be 1-D, but has shape {freq.shape}")
-    if freq.size != n_freq:
+    if ds.ndim != 1:
+        raise _Refused(f"/frequency must be 1-D, but has shape {ds.shape}")
+    if ds.size != n_freq:
         raise _Refused(
-            f"/frequency has {freq.size} lines but /frf has {n_freq} (its first axis)"
+            f"/frequency has {ds.size} lines but /frf has {n_freq} (its first axis)"
         )
+    freq = _real_array(ds, "/frequency")
     _check_finite(freq, "/frequency")
     if freq[0] < 0:
         raise _Refused(f"/frequency has negative values (first line {freq[0]:g} Hz)")
@@ -208,8 +213,8 @@ def _read_coherence(f: h5py.File, shape: tuple[int, ...]) -> np.ndarray | None:
     ds = _dataset(f, "coherence")
     if ds is None:
         return None
+    _check_shape(ds.shape, "/coherence", shape, "the shape of /frf")
     coherence = _real_array(ds, "/coherence")
-    _check_shape(coherence.shape, "/coherence", shape, "the shape of /frf")
     if not np.all((coherence >= 0.0) & (coherence <= 1.0)):
         raise _Refused("/coherence has values outside [0, 1] (or not finite)")
     return coherence
@@ -222,13 +227,12 @@ def _read_records(f: h5py.File, shape: tuple[int, ...]) -> np.ndarray | None:
     if ds is None:
         return None
     axes = "(n_records, n_freq, n_outputs, n_inputs)"
-    records = _complex_array(ds, "/records/frf", ndim=4, axes=axes)
-    if records.shape[1:] != tuple(shape):
+    if ds.ndim == 4 and ds.shape[1:] != tuple(shape):
         raise _Refused(
-            f"/records/frf has shape {records.shape}, expected (n_records,) + {tuple(shape)} "
+            f"/records/frf has shape {ds.shape}, expected (n_records,) + {tuple(shape)} "
             "(the shape of /frf)"
         )
-    return records
+    return _complex_array(ds, "/records/frf", ndim=4, axes=axes)
 
 
 def _read_channels(f: h5py.File, side: str, n: int) -> dict[str, Any]:
@@ -253,14 +257,27 @@ def _read_xyz(f: h5py.File, n_outputs: int) -> np.ndarray | None:
     ds = None if group is None else _dataset(group, "xyz")
     if ds is None:
         return None
-    xyz = _real_array(ds, "/outputs/xyz")
-    _check_shape(xyz.shape, "/outputs/xyz", (n_outputs, 3), "(n_outputs, 3)")
-    return xyz
+    _check_shape(ds.shape, "/outputs/xyz", (n_outputs, 3), "(n_outputs, 3)")
+    return _real_array(ds, "/outputs/xyz")
 
 
 def _free_attributes(attrs: h5py.AttributeManager) -> dict[str, Any]:
     """The root attributes other than format/version/quantity, as plain Python values."""
     return {key: _plain(attrs[key]) for key in attrs if key not in _RESERVED_ATTRIBUTES}
+
+
+def _checked_attributes(attributes: dict[str, Any]) -> dict[str, Any]:
+    """``attributes``, after refusing a ``window_decay_per_s`` (an exponential window's
+    decay in 1/s, which the pipeline adds to every pole) that is not a finite number >= 0."""
+    decay = attributes.get("window_decay_per_s")
+    if decay is not None and (
+        isinstance(decay, bool) or not isinstance(decay, (int, float))
+        or not math.isfinite(decay) or decay < 0
+    ):
+        raise _Refused(
+            f"attribute window_decay_per_s must be a finite number >= 0 (1/s), not {decay!r}"
+        )
+    return attributes
 
 
 # ------------------------------------------------------------------ reading: small checks
@@ -298,6 +315,7 @@ def _complex_array(ds: h5py.Dataset, label: str, ndim: int, axes: str) -> np.nda
         )
     if ds.size == 0:
         raise _Refused(f"{label} is empty (shape {ds.shape})")
+    _check_size(ds, label)
     values = np.asarray(ds[()], dtype=np.complex128)
     _check_finite(values, label)
     return values
@@ -309,6 +327,7 @@ def _real_array(ds: h5py.Dataset, label: str) -> np.ndarray:
         raise _Refused(f"{label} must hold real numbers, not dtype {ds.dtype}")
     if ds.size == 0:
         raise _Refused(f"{label} is empty (shape {ds.shape})")
+    _check_size(ds, label)
     return np.asarray(ds[()], dtype=np.float64)
 
 
@@ -316,6 +335,7 @@ def _int_array(ds: h5py.Dataset, label: str) -> np.ndarray:
     """Read a dataset of integers as int64."""
     if ds.dtype.kind not in "iu":
         raise _Refused(f"{label} must hold integers, not dtype {ds.dtype}")
+    _check_size(ds, label)
     return np.asarray(ds[()], dtype=np.int64)
 
 
@@ -323,7 +343,16 @@ def _string_list(ds: h5py.Dataset, label: str) -> list[str]:
     """Read a dataset of UTF-8 strings as a list of str."""
     if h5py.check_string_dtype(ds.dtype) is None:
         raise _Refused(f"{label} must hold strings, not dtype {ds.dtype}")
+    _check_size(ds, label)
     return [str(s) for s in ds.asstr(errors="replace")[()]]
+
+
+def _check_size(ds: h5py.Dataset, label: str) -> None:
+    """Refuse a dataset too large to read safely (more than
+    :data:`automodal.io.readers.MAX_VALUES` numbers), before reading it."""
+    problem = size_problem(int(ds.size), f"{label} (shape {ds.shape})")
+    if problem:
+        raise _Refused(problem)
 
 
 def _check_length(ds: h5py.Dataset, label: str, n: int, side: str) -> None:

@@ -15,6 +15,13 @@ A file with another suffix is read as an FRF file when it carries the HDF5 signa
 refused otherwise. The readers are imported only when used, so that pyuff is loaded only for
 UFF files.
 
+On Linux the reading runs in a forked child process with a time limit
+(:data:`READ_TIMEOUT_S`): a damaged HDF5 file can make the HDF5 library loop for ever (found
+by the property-based tests: a corrupted variable-length string attribute, read with the
+interpreter lock held) or crash, and neither may hang or kill a batch. Both end in an
+:class:`InputError` like any refused file. Elsewhere, and in daemonic processes (which may
+not start children), the reading runs in the calling process, without that protection.
+
 The module also holds :func:`check_frf_arrays`, the checks that every reader of a foreign
 format applies to the arrays it has assembled (the same rules as ``spec/frf-file.md``).
 """
@@ -22,8 +29,11 @@ format applies to the arrays it has assembled (the same rules as ``spec/frf-file
 from __future__ import annotations
 
 import importlib
+import multiprocessing
 import os
+import sys
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -34,10 +44,13 @@ __all__ = [
     "MAX_TEXT_BYTES",
     "MAX_VALUES",
     "READERS",
+    "READ_TIMEOUT_S",
     "check_frf_arrays",
     "check_is_file",
     "check_size",
+    "check_text_size",
     "read_any",
+    "size_problem",
 ]
 
 MAX_VALUES = 2**26
@@ -45,6 +58,11 @@ MAX_VALUES = 2**26
 e.g. 10^6 lines of 64 FRFs). A file that declares more is refused before anything is read,
 so that a hostile or mistaken file (a huge dataset that was never written, a zip bomb)
 cannot exhaust the memory."""
+
+READ_TIMEOUT_S = 120.0
+"""Longest time one file may take to read, in seconds (the environment variable
+``AUTOMODAL_READ_TIMEOUT_S`` overrides it; ``0`` reads in this process, without a limit).
+A 2^26-value FRF file (1 GiB) reads in a few seconds."""
 
 MAX_TEXT_BYTES = 2**29
 """Largest text file (CSV, UFF) a reader parses: 512 MiB. Parsing text costs several times
@@ -85,8 +103,18 @@ def read_any(path: str | os.PathLike[str]) -> FRFData:
         file.
     """
     source = str(path)
+    check_is_file(Path(path), source)
+    timeout = _read_timeout()
+    if (timeout <= 0 or not sys.platform.startswith("linux")
+            or multiprocessing.current_process().daemon):  # a daemon may not have children
+        return _read_by_suffix(path)
+    return _read_in_child(path, timeout)
+
+
+def _read_by_suffix(path: str | os.PathLike[str]) -> FRFData:
+    """Pick the reader by the suffix (or the HDF5 signature) and read."""
+    source = str(path)
     p = Path(path)
-    check_is_file(p, source)
     target = READERS.get(p.suffix.lower())
     if target is None:
         if not _has_hdf5_signature(p):
@@ -97,6 +125,71 @@ def read_any(path: str | os.PathLike[str]) -> FRFData:
     module, name = target
     reader = getattr(importlib.import_module(module), name)
     return reader(path)
+
+
+def _read_timeout() -> float:
+    """:data:`READ_TIMEOUT_S`, or the environment's ``AUTOMODAL_READ_TIMEOUT_S``."""
+    text = os.environ.get("AUTOMODAL_READ_TIMEOUT_S", "").strip()
+    try:
+        return float(text) if text else READ_TIMEOUT_S
+    except ValueError:
+        return READ_TIMEOUT_S
+
+
+def _read_in_child(path: str | os.PathLike[str], timeout: float) -> FRFData:
+    """:func:`_read_by_suffix` in a forked child that must answer within ``timeout``.
+
+    The child sends back the data, or the refusal, or the unexpected exception, which are
+    raised here as if the reading had happened in this process. A child that does not
+    answer in time is killed; one that dies (a crash in a C library) has no answer: both
+    are refusals of the file.
+    """
+    source = str(path)
+    context = multiprocessing.get_context("fork")
+    receive, send = context.Pipe(duplex=False)
+    child = context.Process(target=_child_reads, args=(path, send), daemon=True)
+    child.start()
+    send.close()
+    try:
+        if not receive.poll(timeout):
+            raise InputError(f"reading did not finish within {timeout:g} s (a damaged file "
+                             "can make the HDF5 library loop)", source)
+        try:
+            answer = receive.recv()
+        except (EOFError, OSError):
+            child.join(5.0)
+            raise InputError(f"the reader crashed on the file (exit code {child.exitcode}): "
+                             "a damaged file", source) from None
+    finally:
+        if child.is_alive():
+            child.kill()
+        child.join()
+        receive.close()
+    kind = answer[0]
+    if kind == "data":
+        return answer[1]
+    if kind == "refused":
+        raise InputError(answer[1], answer[2])
+    raise answer[1]
+
+
+def _child_reads(path: str | os.PathLike[str], send: Any) -> None:
+    """In the child: read, and send ``("data", FRFData)``, ``("refused", problem, path)``
+    or ``("error", exception)`` back."""
+    answer: tuple[Any, ...]
+    try:
+        answer = ("data", _read_by_suffix(path))
+    except InputError as exc:
+        answer = ("refused", exc.problem, exc.path)
+    except Exception as exc:  # noqa: BLE001 - raised again in the parent
+        answer = ("error", exc)
+    try:
+        send.send(answer)
+    except Exception as exc:  # noqa: BLE001 - an exception that cannot be pickled
+        text = " ".join(str(answer[-1]).split())
+        send.send(("error", RuntimeError(f"{type(answer[-1]).__name__}: {text} ({exc})")))
+    finally:
+        send.close()
 
 
 def read_hdf5(path: str | os.PathLike[str]) -> FRFData:
@@ -161,6 +254,48 @@ def check_is_file(path: Path, source: str) -> None:
         raise InputError("is a folder, not an input file", source)
 
 
+def check_text_size(path: Path, source: str) -> None:
+    """Refuse a text file larger than :data:`MAX_TEXT_BYTES`, before it is read.
+
+    Parameters
+    ----------
+    path : Path
+        The file (it exists).
+    source : str
+        How to name it in messages.
+
+    Raises
+    ------
+    InputError
+        If the file is larger than :data:`MAX_TEXT_BYTES`.
+    """
+    size = path.stat().st_size
+    if size > MAX_TEXT_BYTES:
+        raise InputError(f"the file has {size} bytes, more than the {MAX_TEXT_BYTES} a text "
+                         "reader parses (too large to read safely)", source)
+
+
+def size_problem(n_values: int, what: str) -> str | None:
+    """Why an array (or a file's arrays) of ``n_values`` numbers is too large to read, or
+    None when it is not (at most :data:`MAX_VALUES`).
+
+    Parameters
+    ----------
+    n_values : int
+        How many numbers would be read.
+    what : str
+        What holds them, for the message (``"/frf (shape (...))"``).
+
+    Returns
+    -------
+    str or None
+    """
+    if n_values <= MAX_VALUES:
+        return None
+    return (f"{what} holds {n_values} values, more than the {MAX_VALUES} a reader loads "
+            "(too large to read safely)")
+
+
 def check_size(n_values: int, what: str, source: str) -> None:
     """Refuse an array (or a file's arrays) of more than :data:`MAX_VALUES` numbers.
 
@@ -169,7 +304,7 @@ def check_size(n_values: int, what: str, source: str) -> None:
     n_values : int
         How many numbers would be read.
     what : str
-        What holds them, for the message (``"/frf (shape (...))"``).
+        What holds them, for the message.
     source : str
         The file, for the message.
 
@@ -178,9 +313,9 @@ def check_size(n_values: int, what: str, source: str) -> None:
     InputError
         If ``n_values`` exceeds :data:`MAX_VALUES`.
     """
-    if n_values > MAX_VALUES:
-        raise InputError(f"{what} holds {n_values} values, more than the {MAX_VALUES} a reader "
-                         "loads (too large to read safely)", source)
+    problem = size_problem(n_values, what)
+    if problem:
+        raise InputError(problem, source)
 
 
 def _has_hdf5_signature(path: Path) -> bool:

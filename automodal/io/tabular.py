@@ -29,7 +29,7 @@ import numpy as np
 
 from automodal.errors import InputError
 from automodal.frfdata import QUANTITIES, FRFData
-from automodal.io.readers import check_frf_arrays, check_is_file, check_size
+from automodal.io.readers import check_frf_arrays, check_is_file, check_size, check_text_size
 
 __all__ = ["read_csv", "read_npz"]
 
@@ -77,7 +77,8 @@ def read_csv(path: str | os.PathLike[str]) -> FRFData:
         One line naming the file, when the file is missing or not text, has no data rows,
         a value that is not a number, rows of different lengths, not an odd number (at least
         3) of columns, an unknown quantity, or breaks the rules of the FRF file (frequencies
-        strictly increasing, >= 0; finite values; not all imaginary parts zero).
+        strictly increasing, >= 0; finite values; not all imaginary parts zero); or when it
+        is larger than :data:`automodal.io.readers.MAX_TEXT_BYTES` (not read).
     """
     source = str(path)
     text = _read_text(Path(path), source)
@@ -117,6 +118,7 @@ def read_csv(path: str | os.PathLike[str]) -> FRFData:
 def _read_text(path: Path, source: str) -> str:
     """The file as UTF-8 text (a leading byte-order mark removed)."""
     check_is_file(path, source)
+    check_text_size(path, source)
     try:
         return path.read_text(encoding="utf-8-sig")
     except UnicodeDecodeError:
@@ -198,9 +200,12 @@ def read_npz(path: str | os.PathLike[str]) -> FRFData:
     Raises
     ------
     InputError
-        One line naming the file, when it is missing, not an ``.npz`` archive, lacks a key,
-        holds a ``frf`` that is real or neither 2-D nor 3-D, a ``frequency`` of the wrong
-        length, an unknown ``quantity``, pickled objects, or breaks the rules of the FRF file.
+        One line naming the file, when it is missing, not an ``.npz`` archive (or a damaged
+        one), lacks a key, holds a key that is not a ``.npy`` array, a ``frf`` that is real
+        or neither 2-D nor 3-D, a ``frequency`` of the wrong length, an unknown ``quantity``,
+        pickled objects, arrays of more than :data:`automodal.io.readers.MAX_VALUES` numbers
+        (refused from their headers, before they are loaded), or breaks the rules of the FRF
+        file.
     """
     source = str(path)
     p = Path(path)

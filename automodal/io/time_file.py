@@ -32,6 +32,7 @@ from automodal.io.frf_file import (
     _open_hdf5,
     _plain,
     _read_header,
+    _check_size,
     _Refused,
     _string_list,
 )
@@ -72,7 +73,8 @@ def read_time(path: str | os.PathLike[str]) -> TimeSeries:
         ``/time/outputs``, arrays that are not 2-D real (n_samples, n_channels) or hold
         non-finite values, inputs with another number of samples than the outputs, a
         missing or non-positive ``sample_rate``, fewer than :data:`MIN_SAMPLES` samples,
-        a constant (dead) channel, or channel names of the wrong length.
+        a constant (dead) channel, channel names of the wrong length, or an array of more
+        than :data:`automodal.io.readers.MAX_VALUES` numbers (refused before it is read).
     """
     source = str(path)
     try:
@@ -132,6 +134,7 @@ def _samples(time: h5py.Group, name: str, required: bool) -> np.ndarray | None:
             f"{label} has {ds.shape[0]} samples, too short: a spectrum needs at least "
             f"{MIN_SAMPLES}"
         )
+    _check_size(ds, label)
     values = np.asarray(ds[()], dtype=np.float64)
     bad = ~np.isfinite(values)
     if bad.any():

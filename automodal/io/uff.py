@@ -17,7 +17,7 @@ import numpy as np
 
 from automodal.errors import InputError
 from automodal.frfdata import FRFData
-from automodal.io.readers import check_frf_arrays, check_is_file
+from automodal.io.readers import check_frf_arrays, check_is_file, check_text_size
 
 __all__ = ["FUNCTION_TYPES", "direction_name", "read_uff"]
 
@@ -104,11 +104,13 @@ def read_uff(path: str | os.PathLike[str]) -> FRFData:
         holds no dataset 58, holds a function that is not an FRF (saying which type was
         found), real-valued data, sets over different frequency axes, a non-frequency
         abscissa, a ratio of motion to motion, sets that disagree on the response quantity,
-        an (output, input) pair given twice or missing, or non-finite values.
+        an (output, input) pair given twice or missing, or non-finite values; or when it is
+        larger than :data:`automodal.io.readers.MAX_TEXT_BYTES` (not read).
     """
     source = str(path)
     p = Path(path)
     check_is_file(p, source)
+    check_text_size(p, source)
     sets = _read_sets(p, source)
     for number, dset in sets:
         _check_set(number, dset, source)
