@@ -701,8 +701,8 @@ def uff_inputs(draw: st.DrawFn) -> Input:
     binary = draw(st.sampled_from([0, 1]))
     sets = []
     for k in range(n_sets):
-        x = np.asarray(faults.pick(draw, "frequency", [np.arange(1.0, n + 1)],
-                                   [draw(frequencies(n))]), dtype=float).reshape(-1)
+        axis = faults.pick(draw, "frequency", [np.arange(1.0, n + 1)], [draw(frequencies(n))])
+        x = np.real(np.asarray(axis)).astype(float).reshape(-1)  # a UFF axis is real
         values = draw(arrays((x.size,), faults.pick(draw, "values", [("c16",)], [("f8",)]),
                              faults.pick(draw, "values", [()], [SPECIAL_VALUES])))
         ref = faults.pick(draw, "channels", [(1, 3)], [(k, 3)])
@@ -774,6 +774,12 @@ def read_checked(path: Path) -> FRFData | InputError:
     return outcome
 
 
+def read_written(case: Input) -> FRFData | InputError:
+    """Write ``case`` in a fresh folder and :func:`read_checked` it."""
+    with folder() as where:
+        return read_checked(case.write(where))
+
+
 def _snapshot(where: Path) -> dict[str, bytes]:
     """Every file in ``where`` with its bytes."""
     return {p.name: p.read_bytes() for p in sorted(where.iterdir()) if p.is_file()}
@@ -812,37 +818,36 @@ def check_valid(data: FRFData, path: Path) -> None:
 @given(hdf5_inputs())
 @settings(_BASE)
 def test_hdf5_inputs_read_or_are_refused_in_one_line(case: Input) -> None:
-    with folder() as where:
-        read_checked(case.write(where))
+    """HDF5 files of drawn layouts, dtypes, values and attributes, maybe damaged."""
+    read_written(case)
 
 
 @given(csv_inputs())
 @settings(_BASE)
 def test_csv_inputs_read_or_are_refused_in_one_line(case: Input) -> None:
-    with folder() as where:
-        read_checked(case.write(where))
+    """CSV and text tables with bad cells, ragged rows, headers, comments, encodings."""
+    read_written(case)
 
 
 @given(npz_inputs())
 @settings(_BASE)
 def test_npz_inputs_read_or_are_refused_in_one_line(case: Input) -> None:
-    with folder() as where:
-        read_checked(case.write(where))
+    """NPZ archives with drawn keys and arrays, raw members, huge headers, damage."""
+    read_written(case)
 
 
 @given(uff_inputs())
 @examples(0.5)
 def test_uff_inputs_read_or_are_refused_in_one_line(case: Input) -> None:
-    with folder() as where:
-        read_checked(case.write(where))
+    """Universal files of drawn dataset-58 sets, maybe damaged."""
+    read_written(case)
 
 
 @given(junk_inputs())
 @settings(_BASE)
 def test_junk_is_refused_in_one_line(case: Input) -> None:
-    with folder() as where:
-        outcome = read_checked(case.write(where))
-        assert isinstance(outcome, InputError)
+    """Random bytes and formats' signatures with nothing behind, under every suffix."""
+    assert isinstance(read_written(case), InputError)
 
 
 @given(hdf5_inputs(mode="clean"))
