@@ -9,8 +9,9 @@ from __future__ import annotations
 
 import math
 import os
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import h5py
 import numpy as np
@@ -72,9 +73,18 @@ def read_frf(path: str | os.PathLike[str]) -> FRFData:
         input (``/time`` without ``/frf``) is refused too: this reader does not support it
         yet.
     """
+    return read_refusing(_read, path)
+
+
+_T = TypeVar("_T")
+
+
+def read_refusing(read: Callable[[Path, str], _T], path: str | os.PathLike[str]) -> _T:
+    """Run ``read(path, source)`` and turn every refusal or read failure into one
+    :class:`InputError` naming the file (shared by the FRF and time-series readers)."""
     source = str(path)
     try:
-        return _read(Path(path), source)
+        return read(Path(path), source)
     except _Refused as exc:
         raise InputError(exc.problem, source) from None
     except _READ_ERRORS as exc:

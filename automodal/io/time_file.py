@@ -21,12 +21,11 @@ from automodal.errors import InputError
 from automodal.frfdata import QUANTITIES
 from automodal.io.atomic import atomic_path
 from automodal.io.frf_file import (
-    _READ_ERRORS,
+    read_refusing,
     FORMAT_NAME,
     FORMAT_VERSION,
     _check_is_file,
     _dataset,
-    _describe,
     _free_attributes,
     _group,
     _open_hdf5,
@@ -76,13 +75,7 @@ def read_time(path: str | os.PathLike[str]) -> TimeSeries:
         a constant (dead) channel, channel names of the wrong length, or an array of more
         than :data:`automodal.io.readers.MAX_VALUES` numbers (refused before it is read).
     """
-    source = str(path)
-    try:
-        return _read(Path(path), source)
-    except _Refused as exc:
-        raise InputError(exc.problem, source) from None
-    except _READ_ERRORS as exc:
-        raise InputError(f"cannot read the file: {_describe(exc)}", source) from exc
+    return read_refusing(_read, path)
 
 
 def _read(path: Path, source: str) -> TimeSeries:
