@@ -429,6 +429,43 @@ def _shape_spread(rep: np.ndarray, members: np.ndarray) -> np.ndarray:
 # ---------------------------------------------------------------------------------------
 
 
+@dataclass
+class Prepared:
+    """The analysed data, ready for identification (see :func:`prepare`)."""
+
+    data: FRFData  # after the checks (channels or lines may have been dropped)
+    frequency: np.ndarray  # analysed lines, Hz
+    H: np.ndarray  # analysed FRF, oriented for identification (reciprocity applied)
+    band_hz: tuple[float, float]
+    reciprocal: bool
+    omega: np.ndarray
+    T: float  # bilinear scale
+    z: np.ndarray  # lines on the unit circle
+    scales: np.ndarray  # per-output RMS scaling
+    Hs: np.ndarray  # scaled FRF
+    line_weights: np.ndarray
+
+
+def prepare(data: FRFData, s: Settings, warnings: list[str]) -> Prepared:
+    """Band, data checks, reciprocity, bilinear map, channel scaling and line weights.
+
+    The first steps of :func:`identify`, also used by the benchmarks so that they time
+    exactly what the pipeline runs. Warnings are appended to ``warnings``.
+    """
+    freq, H, band = select_band(data, s.band_hz, warnings)
+    data, freq, H = checks.prepare(data, freq, H, warnings)
+    H, reciprocal = apply_reciprocity(H, warnings)
+    omega = 2.0 * np.pi * freq
+    T = default_scale(omega[0], omega[-1])
+    scales = subspace.channel_scales(H)
+    Hs = H / scales[None, :, None]
+    return Prepared(
+        data=data, frequency=freq, H=H, band_hz=band, reciprocal=reciprocal, omega=omega, T=T,
+        z=to_unit_circle(omega, T), scales=scales, Hs=Hs,
+        line_weights=subspace.envelope_weights(Hs),
+    )
+
+
 def identify(
     data: FRFData,
     settings: Settings | None = None,
@@ -464,16 +501,10 @@ def _identify(
     """:func:`identify` with BLAS limited by the caller."""
     t0 = time.perf_counter()
     warnings: list[str] = []
-    freq, H, band = select_band(data, s.band_hz, warnings)
-    data, freq, H = checks.prepare(data, freq, H, warnings)
-    H, reciprocal = apply_reciprocity(H, warnings)
+    p = prepare(data, s, warnings)
+    data, freq, H, band, reciprocal = p.data, p.frequency, p.H, p.band_hz, p.reciprocal
+    omega, T, z, scales, Hs, lw = p.omega, p.T, p.z, p.scales, p.Hs, p.line_weights
     N, ny, nu = H.shape
-    omega = 2.0 * np.pi * freq
-    T = default_scale(omega[0], omega[-1])
-    z = to_unit_circle(omega, T)
-    scales = subspace.channel_scales(H)
-    Hs = H / scales[None, :, None]
-    lw = subspace.envelope_weights(Hs)
 
     # -- orders ---------------------------------------------------------------------
     n_limit = order_limit(N, ny, nu)

@@ -302,7 +302,6 @@ def bench_replicates(path: Path, repeat: int) -> dict:
 
     from automodal import pipeline
     from automodal.core import bootstrap, subspace
-    from automodal.core.bilinear import default_scale, to_unit_circle
     from automodal.io.frf_file import read_frf
 
     data = read_frf(str(path))
@@ -311,17 +310,10 @@ def bench_replicates(path: Path, repeat: int) -> dict:
     n_hi = int(result.orders["reference"])
     q = int(result.orders["block_rows"])
 
-    # the pipeline's preparation, step by step (pipeline.identify)
-    warnings: list[str] = []
-    freq, H, _ = pipeline.select_band(data, settings.band_hz, warnings)
-    H, _ = pipeline.apply_reciprocity(H, warnings)
-    N, ny, nu = H.shape
-    omega = 2.0 * np.pi * freq
-    T = default_scale(omega[0], omega[-1])
-    z = to_unit_circle(omega, T)
-    scales = subspace.channel_scales(H)
-    Hs = H / scales[None, :, None]
-    lw = subspace.envelope_weights(Hs)
+    # the pipeline's own preparation (pipeline.prepare)
+    prep = pipeline.prepare(data, settings, [])
+    z, T, Hs, lw = prep.z, prep.T, prep.Hs, prep.line_weights
+    N, ny, nu = Hs.shape
     assert q == subspace.block_rows(n_hi, ny), "block rows differ from the pipeline's"
     basis = subspace.row_basis(z, q)
     rng = np.random.default_rng(settings.seed)

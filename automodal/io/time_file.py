@@ -21,6 +21,7 @@ from automodal.errors import InputError
 from automodal.frfdata import QUANTITIES
 from automodal.io.atomic import atomic_path
 from automodal.io.frf_file import (
+    _attribute_value,
     read_refusing,
     FORMAT_NAME,
     FORMAT_VERSION,
@@ -208,12 +209,3 @@ def write_time(path: str | os.PathLike[str], ts: TimeSeries) -> None:
         if ts.inputs is not None:
             time.create_dataset("inputs", data=np.asarray(ts.inputs, dtype=np.float64))
             f.create_dataset("inputs/name", data=np.array(list(ts.input_names), dtype=strings))
-
-
-def _attribute_value(value: Any) -> Any:
-    """Make a plain Python value storable as an HDF5 attribute."""
-    if value is None:
-        return h5py.Empty("f8")
-    if isinstance(value, (list, tuple)) and value and all(isinstance(v, str) for v in value):
-        return np.array(value, dtype=h5py.string_dtype())
-    return value
