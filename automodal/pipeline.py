@@ -2,13 +2,14 @@
 
 Steps (``method.md`` sections 1-6): band and scaling; order scan and the excessive
 reference order; reference model and its two subspaces; bootstrap replicates (A and C
-only, batched Gram sums, parallel over processes); one-pass assignment with a Trashbox;
+only, batched Gram sums, stacked small problems in parallel threads); one-pass assignment with a Trashbox;
 trimming; three features per cluster and anchored fuzzy c-means; per-cluster statistics.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -52,7 +53,7 @@ class Settings:
     max_order : int or None
         Largest model order (states) considered; default what the data allow.
     jobs : int or None
-        Processes for the replicates; default all cores.
+        Worker threads for the replicates; default all cores.
     threshold : float
         ``tau_1``, the correlation a mode needs to join a cluster.
     zeta_max : float
@@ -236,27 +237,51 @@ def scan(
         stage = min(n_max, 2 * stage)
 
 
-def _replicate_chunk(
-    sums: subspace.GramSums,
-    rows: range,
-    n: int,
-    basis: subspace.RowBasis,
-    T: float,
-    H: np.ndarray,
-    weights: np.ndarray,
+REPLICATE_CHUNK_BYTES = 32 * 2**20
+"""Memory for the stacked arrays of one chunk of replicates (Schur complements,
+eigenvectors, ``A``, complex eigenvectors): bounds the memory whatever ``B``."""
+
+
+def replicate_chunks(n_replicates: int, m: int, n: int) -> list[range]:
+    """Chunks of replicates computed by one stacked call each.
+
+    The size depends only on the problem (never on the number of workers), so results
+    cannot depend on ``jobs``: at most a quarter of the replicates (so two workers share
+    the load) and :data:`REPLICATE_CHUNK_BYTES` of stacked arrays.
+    """
+    per = 8.0 * (3 * m * m + 6 * n * n + 2 * m * n)
+    size = max(1, min(math.ceil(n_replicates / 4), int(REPLICATE_CHUNK_BYTES // per)))
+    return [range(i, min(n_replicates, i + size)) for i in range(0, n_replicates, size)]
+
+
+def _run_chunks(
+    work: Callable[[range], list[bootstrap.ReplicateModes]],
+    chunks: list[range],
+    n_jobs: int,
+    progress: Callable[[int], None] | None,
 ) -> list[bootstrap.ReplicateModes]:
-    """Identify the replicates ``rows`` (run in a worker process, one BLAS thread)."""
+    """``work`` on every chunk, in ``n_jobs`` threads (numpy's stacked LAPACK calls release
+    the GIL), with one BLAS thread each; results in chunk order."""
     from threadpoolctl import threadpool_limits
 
-    ny = H.shape[1]
-    out = []
+    results: list[bootstrap.ReplicateModes] = []
     with threadpool_limits(1):
-        for b in rows:
-            S = subspace.schur_complement(sums, b)
-            out.append(
-                bootstrap.replicate_from_schur(S, n, basis, T, ny, qr_data=(H, weights[b]))
-            )
-    return out
+        if n_jobs == 1:
+            parts: Any = map(work, chunks)
+        else:
+            from concurrent.futures import ThreadPoolExecutor
+
+            pool = ThreadPoolExecutor(max_workers=n_jobs)
+            parts = pool.map(work, chunks)
+        try:
+            for r, part in zip(chunks, parts):
+                results.extend(part)
+                if progress:
+                    progress(len(r))
+        finally:
+            if n_jobs > 1:
+                pool.shutdown(wait=True, cancel_futures=True)
+    return results
 
 
 def run_replicates(
@@ -268,10 +293,13 @@ def run_replicates(
     jobs: int | None,
     progress: Callable[[int], None] | None = None,
 ) -> list[bootstrap.ReplicateModes]:
-    """All replicates' models: one batched Gram product, then small problems in parallel.
+    """All replicates' models: one batched Gram product, then stacked small problems.
 
-    The result does not depend on ``jobs``: each replicate is computed the same way, with
-    one BLAS thread, and results are gathered in replicate order.
+    The Gram sums of every replicate are one matrix product (all cores); each chunk of
+    replicates then takes one stacked Schur complement, ``eigh``, shift invariance and
+    ``eig`` (:func:`automodal.core.bootstrap.replicates_from_schur`), chunks in parallel
+    threads. The result does not depend on ``jobs``: chunks are fixed by the problem
+    size, each computed with one BLAS thread, and gathered in replicate order.
     """
     import os
 
@@ -280,39 +308,23 @@ def run_replicates(
     with threadpool_limits(os.cpu_count() or 1):  # the one large product: every core
         sums = subspace.gram_sums(basis, H, weights)
     B = weights.shape[0]
-    n_jobs = _n_jobs(jobs, B, _replicate_flops(basis.q * H.shape[1], n) * B)
-    chunk = max(1, int(np.ceil(B / (4 * n_jobs)))) if n_jobs > 1 else max(1, int(np.ceil(B / 5)))
-    rows = [range(i, min(B, i + chunk)) for i in range(0, B, chunk)]
+    ny = H.shape[1]
+    m = basis.q * ny
+    n_jobs = _n_jobs(jobs, B, _replicate_flops(m, n) * B)
 
-    def sub(r: range) -> subspace.GramSums:
-        sl = slice(r.start, r.stop)
-        s = dataclasses.replace(sums, uu=sums.uu[sl], yu=sums.yu[sl], yy=sums.yy[sl])
-        return s
+    def work(r: range) -> list[bootstrap.ReplicateModes]:
+        S = subspace.schur_complement(sums, slice(r.start, r.stop))
+        return bootstrap.replicates_from_schur(
+            S, n, basis, T, ny,
+            qr_fallback=lambda i: subspace.projected_output_qr(basis, H, weights[r.start + i]),
+        )
 
-    results: list[bootstrap.ReplicateModes] = []
-    if n_jobs == 1:
-        for r in rows:
-            results.extend(_replicate_chunk(sub(r), range(len(r)), n, basis, T, H, weights[r.start : r.stop]))
-            if progress:
-                progress(len(r))
-        return results
-    from joblib import Parallel, delayed
-
-    par = Parallel(n_jobs=n_jobs, return_as="generator")
-    calls = (
-        delayed(_replicate_chunk)(sub(r), range(len(r)), n, basis, T, H, weights[r.start : r.stop])
-        for r in rows
-    )
-    for r, part in zip(rows, par(calls)):
-        results.extend(part)
-        if progress:
-            progress(len(r))
-    return results
+    return _run_chunks(work, replicate_chunks(B, m, n), n_jobs, progress)
 
 
-PARALLEL_MIN_FLOPS = 2e9
-"""Below this estimated work the replicates run in the calling process: starting worker
-processes costs about half a second, more than small problems take in all."""
+PARALLEL_MIN_FLOPS = 2e7
+"""Below this estimated work the replicates run in the calling thread (a thread pool
+costs about 0.1 ms; worker threads pay from a few milliseconds of work)."""
 
 
 def _replicate_flops(m: int, n: int) -> float:
@@ -338,29 +350,6 @@ def band_records(
     return np.ascontiguousarray(rec.transpose(0, 1, 3, 2)) if reciprocal else rec
 
 
-def _record_chunk(
-    records: np.ndarray,
-    weights: np.ndarray,
-    n: int,
-    basis: subspace.RowBasis,
-    T: float,
-    line_weights: np.ndarray,
-) -> list[bootstrap.ReplicateModes]:
-    """Identify record replicates (run in a worker process, one BLAS thread)."""
-    from threadpoolctl import threadpool_limits
-
-    ny = records.shape[2]
-    out = []
-    with threadpool_limits(1):
-        for w in weights:
-            H = np.einsum("r,rkij->kij", w / w.sum(), records)
-            S = subspace.single_schur(basis, H, line_weights)
-            out.append(
-                bootstrap.replicate_from_schur(S, n, basis, T, ny, qr_data=(H, line_weights))
-            )
-    return out
-
-
 def run_record_replicates(
     basis: subspace.RowBasis,
     records: np.ndarray,
@@ -373,32 +362,31 @@ def run_record_replicates(
 ) -> list[bootstrap.ReplicateModes]:
     """Replicates that each average a resample of the repeated records.
 
-    The Gram sums are not linear in the FRF, so each replicate forms its own; like
-    :func:`run_replicates`, the result does not depend on ``jobs``.
+    The Gram sums are not linear in the FRF, so each replicate forms its own Schur
+    complement; the rest is stacked as in :func:`run_replicates`, and likewise the result
+    does not depend on ``jobs``.
     """
     B = weights.shape[0]
     ny = records.shape[2]
-    n_jobs = _n_jobs(jobs, B, _replicate_flops(basis.q * ny, n) * B)
-    chunk = max(1, int(np.ceil(B / (4 * n_jobs))))
-    rows = [slice(i, min(B, i + chunk)) for i in range(0, B, chunk)]
-    results: list[bootstrap.ReplicateModes] = []
-    if n_jobs == 1:
-        parts = (_record_chunk(records, weights[r], n, basis, T, line_weights) for r in rows)
-    else:
-        from joblib import Parallel, delayed
+    m = basis.q * ny
+    n_jobs = _n_jobs(jobs, B, _replicate_flops(m, n) * B)
 
-        parts = Parallel(n_jobs=n_jobs, return_as="generator")(
-            delayed(_record_chunk)(records, weights[r], n, basis, T, line_weights) for r in rows
+    def average(b: int) -> np.ndarray:
+        return np.einsum("r,rkij->kij", weights[b] / weights[b].sum(), records)
+
+    def work(r: range) -> list[bootstrap.ReplicateModes]:
+        Hb = [average(b) for b in r]
+        S = np.stack([subspace.single_schur(basis, h, line_weights) for h in Hb])
+        return bootstrap.replicates_from_schur(
+            S, n, basis, T, ny,
+            qr_fallback=lambda i: subspace.projected_output_qr(basis, Hb[i], line_weights),
         )
-    for r, part in zip(rows, parts):
-        results.extend(part)
-        if progress:
-            progress(r.stop - r.start)
-    return results
+
+    return _run_chunks(work, replicate_chunks(B, m, n), n_jobs, progress)
 
 
 def _n_jobs(jobs: int | None, n_tasks: int, flops: float = np.inf) -> int:
-    """Processes to use: ``jobs`` if given, else all cores when the work pays for them."""
+    """Worker threads to use: ``jobs`` if given, else all cores when the work pays for them."""
     import os
 
     if jobs is None or jobs <= 0:

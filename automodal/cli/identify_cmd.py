@@ -162,7 +162,8 @@ def _run_batch(input_path: str, outputs: tuple[str, ...], settings: Settings, ba
 @click.option("--order", "max_order", type=click.IntRange(4, 5000), default=None,
               help="Largest model order (states) considered (default: automatic).")
 @click.option("--jobs", type=int, default=None,
-              help="Processes for the bootstrap (default: all cores); never changes the result.")
+              help="Cores to use: threads for one file's bootstrap, processes across the files of a "
+              "batch (default: all cores); never changes the result.")
 @click.option("--plot", "plot_dir", type=click.Path(file_okay=False), default=None, metavar="DIR",
               help="Also write the standard figures (PNG) into DIR.")
 @click.option("--baseline", "baseline_path", type=click.Path(), default=None, metavar="REPORT",

@@ -1,4 +1,4 @@
-"""Bootstrap replicates: resampling weights and the identification of one replicate.
+"""Bootstrap replicates: resampling weights and the identification of stacks of replicates.
 
 A frequency-line replicate draws the ``N`` lines with replacement; line ``k`` then counts
 ``c_k`` times, which enters the Gram sums linearly, so all replicates' sums are one matrix
@@ -8,12 +8,14 @@ A record replicate draws whole repeated measurements and averages them.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
 from automodal.core import subspace
-from automodal.core.modal import modes_of_discrete
+from automodal.core.bilinear import poles_d2c
+from automodal.core.modal import normalise_shapes
 
 
 def line_weights(n_lines: int, n_bootstrap: int, rng: np.random.Generator) -> np.ndarray:
@@ -39,20 +41,22 @@ class ReplicateModes:
     path: str  # "gram" or "qr"
 
 
-def replicate_from_schur(
+def replicates_from_schur(
     S: np.ndarray,
     n: int,
     basis: subspace.RowBasis,
     T: float,
     ny: int,
-    qr_data: tuple[np.ndarray, np.ndarray | None] | None = None,
-) -> ReplicateModes:
-    """Identify ``A`` and ``C`` of one replicate from its Schur complement, and its modes.
+    qr_fallback: Callable[[int], np.ndarray] | None = None,
+) -> list[ReplicateModes]:
+    """Identify ``A`` and ``C`` of a stack of replicates from their Schur complements, and
+    their modes: one stacked ``eigh``, the normal-equation shift invariance, one stacked
+    ``eig`` (each replicate is computed exactly as if alone, whatever the stack's size).
 
     Parameters
     ----------
-    S : ndarray
-        ``L22 L22^T`` of the replicate.
+    S : ndarray, shape (k, q ny, q ny)
+        ``L22 L22^T`` of each replicate.
     n : int
         Model order.
     basis : RowBasis
@@ -61,17 +65,36 @@ def replicate_from_schur(
         Bilinear scale.
     ny : int
         Outputs.
-    qr_data : (H, weights), optional
-        Scaled FRF and the replicate's line weights: when given and the Gram path cannot
-        resolve the subspace (:func:`automodal.core.subspace.gram_resolves`), the
-        replicate is recomputed on the QR path.
+    qr_fallback : callable, optional
+        ``qr_fallback(i)`` returns ``L22`` of replicate ``i`` of the stack on the QR path;
+        when given, a replicate whose Gram-path subspace is not resolved
+        (:func:`automodal.core.subspace.gram_resolves`) is recomputed from it.
+
+    Returns
+    -------
+    list of ReplicateModes
+        One per replicate, in stack order; modes sorted by natural frequency.
     """
     O, sv = subspace.observability_from_schur(S, n)
-    path = "gram"
-    if qr_data is not None and not subspace.gram_resolves(sv):
-        H, w = qr_data
-        O, _ = subspace.observability_from_l22(subspace.projected_output_qr(basis, H, w), n)
-        path = "qr"
+    paths = ["gram"] * S.shape[0]
+    if qr_fallback is not None:
+        for i in range(S.shape[0]):
+            if not subspace.gram_resolves(sv[i]):
+                O[i] = subspace.observability_from_l22(qr_fallback(i), n)[0]
+                paths[i] = "qr"
     A, C = subspace.shift_invariance(O, ny, basis)
-    ms = modes_of_discrete(A, C, T)
-    return ReplicateModes(poles=ms.poles, mu=ms.mu, shapes=ms.shapes, path=path)
+    mu, V = np.linalg.eig(A)
+    mu = mu.astype(complex, copy=False)
+    psi = C @ V  # (k, ny, n)
+    lam = poles_d2c(mu, T)
+    out = []
+    for i in range(S.shape[0]):
+        keep = np.flatnonzero(lam[i].imag > 0)
+        sel = keep[np.argsort(np.abs(lam[i, keep]))]
+        out.append(
+            ReplicateModes(
+                poles=lam[i, sel], mu=mu[i, sel], shapes=normalise_shapes(psi[i][:, sel]),
+                path=paths[i],
+            )
+        )
+    return out
