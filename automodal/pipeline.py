@@ -11,7 +11,8 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -254,33 +255,35 @@ def replicate_chunks(n_replicates: int, m: int, n: int) -> list[range]:
     return [range(i, min(n_replicates, i + size)) for i in range(0, n_replicates, size)]
 
 
-def _run_chunks(
-    work: Callable[[range], list[bootstrap.ReplicateModes]],
-    chunks: list[range],
-    n_jobs: int,
-    progress: Callable[[int], None] | None,
-) -> list[bootstrap.ReplicateModes]:
-    """``work`` on every chunk, in ``n_jobs`` threads (numpy's stacked LAPACK calls release
-    the GIL), with one BLAS thread each; results in chunk order."""
+@contextmanager
+def _workers(n_jobs: int) -> Iterator[Callable[..., Iterator[Any]]]:
+    """A ``map`` over ``n_jobs`` threads (the built-in ``map`` for one), with one BLAS
+    thread: numpy's matrix products and stacked LAPACK calls release the GIL, so threads
+    share the cores without starting processes (and without OpenBLAS's own threads, which
+    spin after a product and slowed the next step by 10-25 %)."""
     from threadpoolctl import threadpool_limits
 
-    results: list[bootstrap.ReplicateModes] = []
     with threadpool_limits(1):
         if n_jobs == 1:
-            parts: Any = map(work, chunks)
-        else:
-            from concurrent.futures import ThreadPoolExecutor
+            yield map
+            return
+        from concurrent.futures import ThreadPoolExecutor
 
-            pool = ThreadPoolExecutor(max_workers=n_jobs)
-            parts = pool.map(work, chunks)
-        try:
-            for r, part in zip(chunks, parts):
-                results.extend(part)
-                if progress:
-                    progress(len(r))
-        finally:
-            if n_jobs > 1:
-                pool.shutdown(wait=True, cancel_futures=True)
+        with ThreadPoolExecutor(max_workers=n_jobs) as pool:
+            yield pool.map
+
+
+def _collect(
+    parts: Iterable[list[bootstrap.ReplicateModes]],
+    chunks: list[range],
+    progress: Callable[[int], None] | None,
+) -> list[bootstrap.ReplicateModes]:
+    """Results of the chunks, in chunk order, reporting progress as they arrive."""
+    results: list[bootstrap.ReplicateModes] = []
+    for r, part in zip(chunks, parts):
+        results.extend(part)
+        if progress:
+            progress(len(r))
     return results
 
 
@@ -295,22 +298,17 @@ def run_replicates(
 ) -> list[bootstrap.ReplicateModes]:
     """All replicates' models: one batched Gram product, then stacked small problems.
 
-    The Gram sums of every replicate are one matrix product (all cores); each chunk of
-    replicates then takes one stacked Schur complement, ``eigh``, shift invariance and
-    ``eig`` (:func:`automodal.core.bootstrap.replicates_from_schur`), chunks in parallel
-    threads. The result does not depend on ``jobs``: chunks are fixed by the problem
-    size, each computed with one BLAS thread, and gathered in replicate order.
+    The Gram sums of every replicate are one matrix product (over chunks of lines); each
+    chunk of replicates then takes one stacked Schur complement, ``eigh``, shift
+    invariance and ``eig`` (:func:`automodal.core.bootstrap.replicates_from_schur`). Both
+    run in ``jobs`` threads. The result does not depend on ``jobs``: chunks are fixed by
+    the problem size, each is computed with one BLAS thread, and results are combined in
+    chunk order.
     """
-    import os
-
-    from threadpoolctl import threadpool_limits
-
-    with threadpool_limits(os.cpu_count() or 1):  # the one large product: every core
-        sums = subspace.gram_sums(basis, H, weights)
-    B = weights.shape[0]
-    ny = H.shape[1]
+    B, N = weights.shape
+    ny, nu = H.shape[1:]
     m = basis.q * ny
-    n_jobs = _n_jobs(jobs, B, _replicate_flops(m, n) * B)
+    n_jobs = _n_jobs(jobs, B, _replicate_flops(m, n) * B + 4.0 * B * N * m * (ny + nu))
 
     def work(r: range) -> list[bootstrap.ReplicateModes]:
         S = subspace.schur_complement(sums, slice(r.start, r.stop))
@@ -319,7 +317,10 @@ def run_replicates(
             qr_fallback=lambda i: subspace.projected_output_qr(basis, H, weights[r.start + i]),
         )
 
-    return _run_chunks(work, replicate_chunks(B, m, n), n_jobs, progress)
+    chunks = replicate_chunks(B, m, n)
+    with _workers(n_jobs) as pmap:
+        sums = subspace.gram_sums(basis, H, weights, map_fn=pmap)
+        return _collect(pmap(work, chunks), chunks, progress)
 
 
 PARALLEL_MIN_FLOPS = 2e7
@@ -382,7 +383,9 @@ def run_record_replicates(
             qr_fallback=lambda i: subspace.projected_output_qr(basis, Hb[i], line_weights),
         )
 
-    return _run_chunks(work, replicate_chunks(B, m, n), n_jobs, progress)
+    chunks = replicate_chunks(B, m, n)
+    with _workers(n_jobs) as pmap:
+        return _collect(pmap(work, chunks), chunks, progress)
 
 
 def _n_jobs(jobs: int | None, n_tasks: int, flops: float = np.inf) -> int:

@@ -190,3 +190,64 @@ def test_bd_normal_equations_match_the_stacked_problem():
     H1 = subspace.frequency_response(model.Ad, B1, model.Cd, D1, z)
     H2 = subspace.frequency_response(model.Ad, B2, model.Cd, D2, z)
     assert np.linalg.norm(H1 - H2) / np.linalg.norm(H2) < 1e-6
+
+
+def _orthonormal(rng, m, n):
+    return np.linalg.qr(rng.standard_normal((m, n)))[0]
+
+
+@pytest.mark.parametrize("kind", ["monomial", "orthonormal"])
+def test_normal_equation_shift_invariance_equals_least_squares(kind):
+    """The Woodbury form of the shift invariance is the least-squares solution, stacked
+    or alone, and a nearly rank-deficient O_up goes to lstsq."""
+    rng = np.random.default_rng(3)
+    ny, q, n = 3, 6, 12
+    z = np.exp(1j * np.linspace(0.1, 2.5, 200))
+    basis = subspace.row_basis(z, q, kind)
+    O = np.stack([_orthonormal(rng, q * ny, n) for _ in range(4)])
+    # replicate 3: one state lives in the last block row only (sigma_min(O_up) = 0)
+    O[3, :, 0] = 0.0
+    O[3, -ny:, 0] = np.array([1.0, 0.0, 0.0])
+    O[3] = np.linalg.qr(O[3])[0] * np.sign(np.diag(np.linalg.qr(O[3])[1]))
+    A, C = subspace.shift_invariance(O, ny, basis)
+    for b in range(4):
+        up = O[b, :-ny]
+        if basis.monomial:
+            rhs = O[b, ny:]
+        else:
+            rhs = np.einsum("ij,iak->jak", basis.shift, O[b].reshape(q, ny, n)).reshape(-1, n)
+        ref = np.linalg.lstsq(up, rhs, rcond=None)[0]
+        assert np.max(np.abs(A[b] - ref)) < 1e-10 * max(1.0, np.max(np.abs(ref)))
+        A1, C1 = subspace.shift_invariance(O[b], ny, basis)
+        np.testing.assert_array_equal(A1, A[b])
+        np.testing.assert_array_equal(C1, C[b])
+        np.testing.assert_array_equal(C[b], O[b, :ny] / basis.p0)
+
+
+def test_stacked_replicates_equal_replicates_alone():
+    """A replicate's modes do not depend on the stack it is computed in (so not on
+    ``jobs``), and the stacked Schur complements equal the one-by-one ones."""
+    from automodal.core import bootstrap
+
+    system = _system("chain8")
+    data, _, z, T = _data(system, [0, 3, 7], [7], "displacement", noise=0.01, n_lines=300)
+    rng = np.random.default_rng(1)
+    w = bootstrap.line_weights(z.size, 5, rng).astype(float)
+    n = 24
+    basis = subspace.row_basis(z, subspace.block_rows(n, 3))
+    sums = subspace.gram_sums(basis, data.frf, w)
+    S = subspace.schur_complement(sums, slice(0, 5))
+    for b in range(5):
+        np.testing.assert_allclose(S[b], subspace.schur_complement(sums, b), rtol=0,
+                                   atol=1e-12 * np.abs(S[b]).max())
+    stacked = bootstrap.replicates_from_schur(S, n, basis, T, 3)
+    for b in range(5):
+        alone = bootstrap.replicates_from_schur(S[b : b + 1], n, basis, T, 3)[0]
+        np.testing.assert_array_equal(alone.poles, stacked[b].poles)
+        np.testing.assert_array_equal(alone.shapes, stacked[b].shapes)
+        # and the same modes as the reference route (eig of one model, modes_of_discrete)
+        O, _ = subspace.observability_from_schur(S[b], n)
+        A, C = subspace.shift_invariance(O, 3, basis)
+        ref = modes_of_discrete(A, C, T)
+        np.testing.assert_allclose(stacked[b].poles, ref.poles, rtol=1e-12)
+        assert np.all(np.abs(np.sum(stacked[b].shapes.conj() * ref.shapes, axis=0)) > 1 - 1e-10)

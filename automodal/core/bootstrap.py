@@ -85,16 +85,15 @@ def replicates_from_schur(
     A, C = subspace.shift_invariance(O, ny, basis)
     mu, V = np.linalg.eig(A)
     mu = mu.astype(complex, copy=False)
-    psi = C @ V  # (k, ny, n)
+    k, n_states = mu.shape
+    psi = C @ V  # (k, ny, n): every shape of every replicate, normalised in one call
+    psi = normalise_shapes(psi.swapaxes(0, 1).reshape(ny, k * n_states))
+    psi = psi.reshape(ny, k, n_states).swapaxes(0, 1)
     lam = poles_d2c(mu, T)
     out = []
-    for i in range(S.shape[0]):
+    for i in range(k):
         keep = np.flatnonzero(lam[i].imag > 0)
         sel = keep[np.argsort(np.abs(lam[i, keep]))]
-        out.append(
-            ReplicateModes(
-                poles=lam[i, sel], mu=mu[i, sel], shapes=normalise_shapes(psi[i][:, sel]),
-                path=paths[i],
-            )
-        )
+        out.append(ReplicateModes(poles=lam[i, sel], mu=mu[i, sel], shapes=psi[i][:, sel],
+                                  path=paths[i]))
     return out

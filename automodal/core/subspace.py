@@ -24,6 +24,7 @@ Two ways to get it are implemented:
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
 import numpy as np
@@ -288,6 +289,7 @@ def gram_sums(
     H: np.ndarray,
     weights: np.ndarray | None = None,
     chunk_bytes: int = 64 * 2**20,
+    map_fn: Callable[..., Iterable[np.ndarray]] = map,
 ) -> GramSums:
     """Weighted Gram sums for one or many sets of line weights, in one matrix product.
 
@@ -302,6 +304,10 @@ def gram_sums(
     chunk_bytes : int
         Memory allowed for the per-line feature block; lines are processed in chunks so
         that memory stays bounded whatever ``N``.
+    map_fn : callable
+        A ``map`` over the chunks of lines (the built-in, or a thread pool's ``map`` to
+        compute chunks in parallel). The chunks depend only on the problem's size and
+        their partial sums are added in chunk order, so the result does not depend on it.
 
     Returns
     -------
@@ -315,12 +321,16 @@ def gram_sums(
     n_y = q if toeplitz else q * q
     n_feat = n_a * (1 + ny * nu) + n_y * ny * ny
     step = max(1, int(chunk_bytes // (32 * n_feat)))
-    acc = np.zeros((c.shape[0], 2 * n_feat))
-    for start in range(0, N, step):
+
+    def partial(start: int) -> np.ndarray:
         sl = slice(start, min(N, start + step))
         F = _line_features(basis.values[:, sl], H[sl], toeplitz)
         # real weights times complex features as one real matrix product
-        acc += c[:, sl] @ np.ascontiguousarray(F).view(float)
+        return c[:, sl] @ np.ascontiguousarray(F).view(float)
+
+    acc = np.zeros((c.shape[0], 2 * n_feat))
+    for part in map_fn(partial, range(0, N, step)):
+        acc += part
     tot = acc.view(complex)
     B = c.shape[0]
     shape_a = (B, 2 * q - 1) if toeplitz else (B, q, q)
