@@ -305,10 +305,10 @@ def run_replicates(
     the problem size, each is computed with one BLAS thread, and results are combined in
     chunk order.
     """
-    B, N = weights.shape
-    ny, nu = H.shape[1:]
+    B = weights.shape[0]
+    ny = H.shape[1]
     m = basis.q * ny
-    n_jobs = _n_jobs(jobs, B, _replicate_flops(m, n) * B + 4.0 * B * N * m * (ny + nu))
+    n_jobs = replicate_workers(jobs, basis, H, n, B)
 
     def work(r: range) -> list[bootstrap.ReplicateModes]:
         S = subspace.schur_complement(sums, slice(r.start, r.stop))
@@ -326,6 +326,17 @@ def run_replicates(
 PARALLEL_MIN_FLOPS = 2e7
 """Below this estimated work the replicates run in the calling thread (a thread pool
 costs about 0.1 ms; worker threads pay from a few milliseconds of work)."""
+
+
+def replicate_workers(
+    jobs: int | None, basis: subspace.RowBasis, H: np.ndarray, n: int, n_replicates: int
+) -> int:
+    """Worker threads :func:`run_replicates` uses: ``jobs`` if given, else all cores when
+    the Gram product and the replicates' eigenproblems pay for them."""
+    N, ny, nu = H.shape
+    m = basis.q * ny
+    gram = 4.0 * n_replicates * N * m * (ny + nu)
+    return _n_jobs(jobs, n_replicates, _replicate_flops(m, n) * n_replicates + gram)
 
 
 def _replicate_flops(m: int, n: int) -> float:
@@ -480,8 +491,8 @@ def identify(
     from threadpoolctl import threadpool_limits
 
     # One BLAS thread for the many small dense problems (measured: 0.75 s against 0.9 s
-    # end to end on a 6-DOF chain, and far steadier on a busy machine); the one large
-    # product, the replicates' Gram sums, gets every core (run_replicates).
+    # end to end on a 6-DOF chain, and far steadier on a busy machine); the replicates
+    # share the cores through worker threads (run_replicates).
     with threadpool_limits(1):
         return _identify(data, settings or Settings(), progress)
 

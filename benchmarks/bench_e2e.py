@@ -335,8 +335,7 @@ def bench_replicates(path: Path, repeat: int) -> dict:
     t_rep1, _, _ = timed_min(
         lambda: pipeline.run_replicates(basis, Hs, n_hi, T, weights, 1), repeat
     )
-    flops = pipeline._replicate_flops(basis.q * ny, n_hi) * settings.n_bootstrap
-    jobs = pipeline._n_jobs(settings.jobs, settings.n_bootstrap, flops)
+    jobs = pipeline.replicate_workers(settings.jobs, basis, Hs, n_hi, settings.n_bootstrap)
 
     # where the replicates' time goes: the one Gram product, and the stacked
     # eigenproblems alone (one thread), which no exact replicate model can skip
@@ -429,6 +428,11 @@ def bench_peer(npz: Path, true_f: list[float], repeat: int) -> dict:
 # ---------------------------------------------------------------------------- report
 
 
+def one_fit(r: dict) -> float:
+    """The single identification's time: the faster of default BLAS threads and one."""
+    return min(r["t_one"], r["t_one_1thread"])
+
+
 def render(meta: dict, cli: dict, ratios: dict, peer: dict | None) -> str:
     out = ["# automodal end-to-end benchmark", ""]
     out += [f"* date: {meta['date']}", f"* machine: {meta['machine']}; nproc {meta['nproc']}",
@@ -471,7 +475,7 @@ def render(meta: dict, cli: dict, ratios: dict, peer: dict | None) -> str:
                 " whole `pipeline.identify` s (one call) |",
                 "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|---:|"]
         for key, r in ratios.items():
-            one = min(r["t_one"], r["t_one_1thread"])
+            one = one_fit(r)
             out.append(
                 f"| {key} | {r['N']} | {r['ny']} | {r['nu']} | {r['n_hi']} | {r['q']} |"
                 f" {fmt_s(r['t_one'])} / {fmt_s(r['t_one_1thread'])} |"
@@ -502,7 +506,7 @@ def render(meta: dict, cli: dict, ratios: dict, peer: dict | None) -> str:
                 " ratio replicates / textbook fit |",
                 "|---|---:|---:|---:|---:|---:|---:|---:|"]
         for key, r in ratios.items():
-            one = min(r["t_one"], r["t_one_1thread"])
+            one = one_fit(r)
             floor = (r["t_eigh"] + r["t_eig"]) / r["jobs"]
             out.append(
                 f"| {key} | {fmt_s(r['t_gram'])} | {fmt_s(r['t_eigh'])} |"
@@ -609,7 +613,7 @@ def main(argv: list[str] | None = None) -> int:
             ratios[key] = bench_replicates(paths[key], args.repeat)
             ratios[key]["load"] = load
             r = ratios[key]
-            one = min(r["t_one"], r["t_one_1thread"])
+            one = one_fit(r)
             print(f"    one {one:.3f} s, replicates {r['t_rep']:.3f} s"
                   f" -> ratio {r['t_rep'] / one:.2f}", flush=True)
         meta["load_end"] = load_average()

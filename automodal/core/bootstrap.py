@@ -15,7 +15,7 @@ import numpy as np
 
 from automodal.core import subspace
 from automodal.core.bilinear import poles_d2c
-from automodal.core.modal import normalise_shapes
+from automodal.core.modal import normalise_shapes, oscillatory_order
 
 
 def line_weights(n_lines: int, n_bootstrap: int, rng: np.random.Generator) -> np.ndarray:
@@ -92,8 +92,7 @@ def replicates_from_schur(
     lam = poles_d2c(mu, T)
     out = []
     for i in range(k):
-        keep = np.flatnonzero(lam[i].imag > 0)
-        sel = keep[np.argsort(np.abs(lam[i, keep]))]
+        sel = oscillatory_order(lam[i])
         out.append(ReplicateModes(poles=lam[i, sel], mu=mu[i, sel], shapes=psi[i][:, sel],
                                   path=paths[i]))
     return out

@@ -73,6 +73,13 @@ def unit_max_shapes(psi: np.ndarray) -> np.ndarray:
     return out
 
 
+def oscillatory_order(lam: np.ndarray) -> np.ndarray:
+    """Indices of the poles with positive imaginary part (one per conjugate pair), sorted
+    by natural frequency ``|lambda|``: the modes a :class:`ModeSet` keeps."""
+    keep = np.flatnonzero(lam.imag > 0)
+    return keep[np.argsort(np.abs(lam[keep]))]
+
+
 def modes_of_discrete(
     Ad: np.ndarray,
     Cd: np.ndarray,
@@ -102,9 +109,7 @@ def modes_of_discrete(
     """
     mu, V = np.linalg.eig(Ad)
     lam = poles_d2c(mu, T)
-    keep = lam.imag > 0
-    order = np.argsort(np.abs(lam[keep]))
-    sel = np.flatnonzero(keep)[order]
+    sel = oscillatory_order(lam)
     shapes = normalise_shapes(Cd @ V[:, sel])
     part = None
     if Bd is not None:

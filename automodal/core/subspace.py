@@ -247,11 +247,6 @@ class GramSums:
     q: int
     toeplitz: bool
 
-    @property
-    def n_replicates(self) -> int:
-        """Number of weight sets (replicates) summed."""
-        return int(self.uu.shape[0])
-
     def blocks(self, b: int | slice = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Real Gram blocks of replicate ``b`` (or of the replicates of a slice, with a
         leading replicate axis): ``tu`` (q, q) with ``Guu = tu kron I``, ``gyu``
@@ -542,21 +537,14 @@ def shift_invariance(O: np.ndarray, ny: int, basis: RowBasis) -> tuple[np.ndarra
     X = O[..., -ny:, :]
     K = np.eye(ny) - X @ X.swapaxes(-1, -2)
     M = up.swapaxes(-1, -2) @ rhs
-    gap = np.linalg.eigvalsh(K)[..., 0]
-    ok = gap >= SHIFT_MIN_GAP
+    # one model per row of a flat stack; the rare nearly rank-deficient ones by lstsq
+    M, X, K, up, rhs = (a.reshape((-1,) + a.shape[-2:]) for a in (M, X, K, up, rhs))
+    ok = np.linalg.eigvalsh(K)[:, 0] >= SHIFT_MIN_GAP
     A = np.empty_like(M)
-    if np.all(ok):
-        A[...] = M + X.swapaxes(-1, -2) @ np.linalg.solve(K, X @ M)
-    else:
-        flat_ok = ok.reshape(-1)
-        A_f, M_f, X_f, K_f = (a.reshape((-1,) + a.shape[-2:]) for a in (A, M, X, K))
-        up_f, rhs_f = up.reshape((-1,) + up.shape[-2:]), rhs.reshape((-1,) + rhs.shape[-2:])
-        i = np.flatnonzero(flat_ok)
-        if i.size:
-            A_f[i] = M_f[i] + X_f[i].swapaxes(-1, -2) @ np.linalg.solve(K_f[i], X_f[i] @ M_f[i])
-        for j in np.flatnonzero(~flat_ok):
-            A_f[j] = np.linalg.lstsq(up_f[j], rhs_f[j], rcond=None)[0]
-    return A, C
+    A[ok] = M[ok] + X[ok].swapaxes(-1, -2) @ np.linalg.solve(K[ok], X[ok] @ M[ok])
+    for j in np.flatnonzero(~ok):
+        A[j] = np.linalg.lstsq(up[j], rhs[j], rcond=None)[0]
+    return A.reshape(O.shape[:-2] + A.shape[-2:]), C
 
 
 def _modal_regressor(
