@@ -18,9 +18,10 @@ Parts:
    power sums turned into the orthonormal basis by the congruence with the basis'
    monomial coefficients (``P = C W``, so ``G_orth = C G_mono C^T`` block by block); its
    rounding error grows like ``eps cond(monomial Gram)``.
-3. ``--pipeline`` (slow, about 6 minutes): ``pipeline.identify`` with the block rows of
+3. ``--pipeline`` (slow, about 7 minutes): ``pipeline.identify`` with the block rows of
    the reference model and replicates raised to at least ``Q`` (``block_rows`` patched
-   for the run): modes found, spurious physical rows, wall time.
+   for the run): modes found, spurious physical rows, wall time; the largest ``Q`` once
+   more with the replicates' sums by the congruence (``gram_sums`` patched too).
 
 Run ``python benchmarks/bench_block_rows.py --help`` for the options.
 """
@@ -32,6 +33,7 @@ import json
 import sys
 import tempfile
 import time
+from dataclasses import dataclass
 from pathlib import Path
 from unittest import mock
 
@@ -50,6 +52,7 @@ ORDERS = (160, 228)
 BLOCK_ROWS = (8, 12, 16, 20, 28)
 GRAM_Q = 19  # q ny >= 3 n at the reference order 228 (the scan's rule, scan_block_rows)
 PIPELINE_Q = (8, 13, 19)
+DEFAULT_GRAM_SUMS = subspace.gram_sums
 
 
 def simulate(workdir: Path, noise: float) -> tuple[Path, np.ndarray]:
@@ -112,16 +115,33 @@ def monomial_coefficients(basis: subspace.RowBasis) -> np.ndarray:
     return C
 
 
-def congruence_schur(sums: subspace.GramSums, C: np.ndarray) -> np.ndarray:
-    """Schur complement in the basis ``P = C W`` from monomial (Toeplitz) sums."""
-    tu, gyu, gyy = sums.blocks(0)
-    q, _, ny, nu = gyu.shape
-    tu = C @ tu @ C.T
-    gyu = np.einsum("id,deab,je->ijab", C, gyu, C)
-    gyy = np.einsum("id,deab,je->ijab", C, gyy, C)
-    guu = np.kron(tu, np.eye(nu))
-    return subspace._schur(guu, gyu.swapaxes(1, 2).reshape(q * ny, q * nu),
-                           gyy.swapaxes(1, 2).reshape(q * ny, q * ny))
+def _congruence(C: np.ndarray, g: np.ndarray) -> np.ndarray:
+    """``C g C^T`` over the two block-row axes of ``g`` (..., q, q, a, b)."""
+    g = np.moveaxis(g, (-4, -3), (-2, -1))
+    return np.moveaxis(C @ g @ C.T, (-2, -1), (-4, -3))
+
+
+@dataclass
+class CongruenceSums(subspace.GramSums):
+    """Monomial (block-Toeplitz) sums whose blocks come out in the basis ``P = C W``."""
+
+    C: np.ndarray = None  # type: ignore[assignment]
+
+    def blocks(self, b: int | slice = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        tu, gyu, gyy = super().blocks(b)
+        tu = self.C @ tu @ self.C.T
+        return tu, _congruence(self.C, gyu), _congruence(self.C, gyy)
+
+
+def congruence_gram_sums(basis: subspace.RowBasis, H: np.ndarray, weights=None, **kw):
+    """``subspace.gram_sums`` with a non-monomial basis computed as monomial power sums
+    and a congruence (the orthonormal basis' ``z`` recovered from ``p_1``)."""
+    if basis.monomial:
+        return DEFAULT_GRAM_SUMS(basis, H, weights, **kw)
+    z = (basis.values[1] * basis.shift[1, 0] + basis.shift[0, 0] * basis.p0) / basis.p0
+    s = DEFAULT_GRAM_SUMS(subspace.monomial_basis(z, basis.q), H, weights, **kw)
+    return CongruenceSums(uu=s.uu, yu=s.yu, yy=s.yy, q=s.q, toeplitz=True,
+                          C=monomial_coefficients(basis))
 
 
 def gram_routes(path: Path, true: np.ndarray) -> dict:
@@ -137,7 +157,8 @@ def gram_routes(path: Path, true: np.ndarray) -> dict:
     s_mono = subspace.gram_sums(mono, prep.Hs, prep.line_weights)
     t_mono = time.perf_counter() - t0
     S_orth = subspace.schur_complement(s_orth)
-    S_cong = congruence_schur(s_mono, C)
+    S_cong = subspace.schur_complement(CongruenceSums(
+        uu=s_mono.uu, yu=s_mono.yu, yy=s_mono.yy, q=q, toeplitz=True, C=C))
     out = {"q": q, "cond": subspace._monomial_gram_cond(prep.z, q), "t_orth": t_orth,
            "t_mono": t_mono, "rel": float(np.abs(S_cong - S_orth).max() / np.abs(S_orth).max())}
     for name, S in (("orth", S_orth), ("cong", S_cong)):
@@ -153,20 +174,24 @@ def pipeline_runs(path: Path, true: np.ndarray) -> list[dict]:
     data = read_frf(str(path))
     default = subspace.block_rows
     rows = []
-    for Q in PIPELINE_Q:
+    runs = [(Q, False) for Q in PIPELINE_Q] + [(PIPELINE_Q[-1], True)]
+    for Q, congruence in runs:
         def raised(n: int, ny: int, Q: int = Q) -> int:
             return default(n, ny) if ny <= 1 else max(default(n, ny), Q)
 
-        with mock.patch.object(subspace, "block_rows", raised):
+        sums = congruence_gram_sums if congruence else DEFAULT_GRAM_SUMS
+        with mock.patch.object(subspace, "block_rows", raised), \
+                mock.patch.object(subspace, "gram_sums", sums):
             t0 = time.perf_counter()
             res = pipeline.identify(data, pipeline.Settings(seed=0))
             dt = time.perf_counter() - t0
         phys = [m.frequency_hz for m in res.modes if m.physical]
         found, extra = match_modes(phys, list(true))
-        rows.append({"Q": Q, "q": res.orders["block_rows"], "basis": res.orders["basis"],
+        rows.append({"Q": Q, "q": res.orders["block_rows"],
+                     "basis": res.orders["basis"] + (" (congruence sums)" if congruence else ""),
                      "n0": res.orders["n0"], "n_ref": res.orders["reference"],
                      "physical": len(phys), "found": found, "extra": extra, "time": dt})
-        print(f"  pipeline q>={Q}: {found} found, {extra} extra, {dt:.1f} s", file=sys.stderr)
+        print(f"  pipeline q>={Q} congruence={congruence}: {found} found, {extra} extra, {dt:.1f} s", file=sys.stderr)
     return rows
 
 

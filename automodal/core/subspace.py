@@ -54,7 +54,9 @@ def scan_block_rows(n: int, ny: int) -> int:
     The scan must resolve the true order, not an over-sized one: on a 40-output, 80-mode
     grid, noise-free data at order 160 were identified exactly with ``q = 14`` (``q ny = 3.5 n``)
     but not with ``q = 6`` or ``9``, though ``(q - 1) ny >= n`` held. The reference model
-    gets its margin from its own excessive order instead.
+    keeps :func:`block_rows`, and its excessive order does not make up for it on that grid
+    (order 228, ``q = 8`` or ``12``: no mode within 1e-6 noise-free; see the known limit in
+    ``docs/method.md`` and ``benchmarks/bench_block_rows.py``).
     """
     if ny <= 1:
         return int(n) + 1
