@@ -2,8 +2,9 @@
 
 Steps (``method.md`` sections 1-6): band and scaling; order scan and the excessive
 reference order; reference model and its two subspaces; bootstrap replicates (A and C
-only, batched Gram sums, stacked small problems in parallel threads); one-pass assignment with a Trashbox;
-trimming; three features per cluster and anchored fuzzy c-means; per-cluster statistics.
+only, batched Gram sums, stacked small problems in parallel threads); one-pass assignment
+with a Trashbox; trimming; three features per cluster and anchored fuzzy c-means;
+per-cluster statistics.
 """
 
 from __future__ import annotations

@@ -45,6 +45,7 @@ from bench_e2e import automodal_cmd  # noqa: E402
 
 from automodal import pipeline  # noqa: E402
 from automodal.core import subspace  # noqa: E402
+from automodal.core.clustering import physical_candidates  # noqa: E402
 from automodal.core.modal import modes_of_discrete  # noqa: E402
 from automodal.io.frf_file import read_frf  # noqa: E402
 
@@ -66,12 +67,11 @@ def simulate(workdir: Path, noise: float) -> tuple[Path, np.ndarray]:
 
 
 def in_band_poles(A: np.ndarray, C: np.ndarray, prep: pipeline.Prepared) -> np.ndarray:
-    """Natural frequencies (Hz) of the stable, 0 < zeta < 0.2, in-band modes of (A, C)."""
+    """Natural frequencies (Hz) of the modes of (A, C) that the pipeline would take as
+    physical candidates (``clustering.physical_candidates``)."""
     m = modes_of_discrete(A, C, prep.T)
-    wn = np.abs(m.poles)
-    f, zeta = wn / (2 * np.pi), -m.poles.real / wn
-    keep = (zeta > 0) & (zeta < 0.2) & (f >= prep.band_hz[0]) & (f <= prep.band_hz[1])
-    return f[keep]
+    band = (2 * np.pi * prep.band_hz[0], 2 * np.pi * prep.band_hz[1])
+    return np.abs(m.poles[physical_candidates(m.poles, band)]) / (2 * np.pi)
 
 
 def errors(found: np.ndarray, true: np.ndarray) -> np.ndarray:
@@ -133,15 +133,18 @@ class CongruenceSums(subspace.GramSums):
         return tu, _congruence(self.C, gyu), _congruence(self.C, gyy)
 
 
-def congruence_gram_sums(basis: subspace.RowBasis, H: np.ndarray, weights=None, **kw):
-    """``subspace.gram_sums`` with a non-monomial basis computed as monomial power sums
-    and a congruence (the orthonormal basis' ``z`` recovered from ``p_1``)."""
-    if basis.monomial:
-        return DEFAULT_GRAM_SUMS(basis, H, weights, **kw)
-    z = (basis.values[1] * basis.shift[1, 0] + basis.shift[0, 0] * basis.p0) / basis.p0
-    s = DEFAULT_GRAM_SUMS(subspace.monomial_basis(z, basis.q), H, weights, **kw)
-    return CongruenceSums(uu=s.uu, yu=s.yu, yy=s.yy, q=s.q, toeplitz=True,
-                          C=monomial_coefficients(basis))
+def congruence_gram_sums(z: np.ndarray):
+    """A ``subspace.gram_sums`` for data points ``z`` that computes non-monomial bases as
+    monomial power sums and a congruence (monomial bases as before)."""
+
+    def gram_sums(basis: subspace.RowBasis, H: np.ndarray, weights=None, **kw):
+        if basis.monomial:
+            return DEFAULT_GRAM_SUMS(basis, H, weights, **kw)
+        s = DEFAULT_GRAM_SUMS(subspace.monomial_basis(z, basis.q), H, weights, **kw)
+        return CongruenceSums(uu=s.uu, yu=s.yu, yy=s.yy, q=s.q, toeplitz=True,
+                              C=monomial_coefficients(basis))
+
+    return gram_sums
 
 
 def gram_routes(path: Path, true: np.ndarray) -> dict:
@@ -172,6 +175,7 @@ def gram_routes(path: Path, true: np.ndarray) -> dict:
 
 def pipeline_runs(path: Path, true: np.ndarray) -> list[dict]:
     data = read_frf(str(path))
+    z = pipeline.prepare(data, pipeline.Settings(), []).z  # the points the pipeline maps to
     default = subspace.block_rows
     rows = []
     runs = [(Q, False) for Q in PIPELINE_Q] + [(PIPELINE_Q[-1], True)]
@@ -179,7 +183,7 @@ def pipeline_runs(path: Path, true: np.ndarray) -> list[dict]:
         def raised(n: int, ny: int, Q: int = Q) -> int:
             return default(n, ny) if ny <= 1 else max(default(n, ny), Q)
 
-        sums = congruence_gram_sums if congruence else DEFAULT_GRAM_SUMS
+        sums = congruence_gram_sums(z) if congruence else DEFAULT_GRAM_SUMS
         with mock.patch.object(subspace, "block_rows", raised), \
                 mock.patch.object(subspace, "gram_sums", sums):
             t0 = time.perf_counter()
