@@ -48,6 +48,7 @@ from automodal.core import subspace  # noqa: E402
 from automodal.core.clustering import physical_candidates  # noqa: E402
 from automodal.core.modal import modes_of_discrete  # noqa: E402
 from automodal.io.frf_file import read_frf  # noqa: E402
+from automodal.settings import Settings  # noqa: E402
 
 ORDERS = (160, 228)
 BLOCK_ROWS = (8, 12, 16, 20, 28)
@@ -82,7 +83,7 @@ def errors(found: np.ndarray, true: np.ndarray) -> np.ndarray:
 
 
 def single_fits(path: Path, true: np.ndarray) -> list[dict]:
-    prep = pipeline.prepare(read_frf(str(path)), pipeline.Settings(), [])
+    prep = pipeline.prepare(read_frf(str(path)), Settings(), [])
     rows = []
     for n in ORDERS:
         for q in BLOCK_ROWS:
@@ -148,7 +149,7 @@ def congruence_gram_sums(z: np.ndarray):
 
 
 def gram_routes(path: Path, true: np.ndarray) -> dict:
-    prep = pipeline.prepare(read_frf(str(path)), pipeline.Settings(), [])
+    prep = pipeline.prepare(read_frf(str(path)), Settings(), [])
     q, ny = GRAM_Q, prep.Hs.shape[1]
     orth = subspace.orthonormal_basis(prep.z, q)
     mono = subspace.monomial_basis(prep.z, q)
@@ -175,7 +176,7 @@ def gram_routes(path: Path, true: np.ndarray) -> dict:
 
 def pipeline_runs(path: Path, true: np.ndarray) -> list[dict]:
     data = read_frf(str(path))
-    z = pipeline.prepare(data, pipeline.Settings(), []).z  # the points the pipeline maps to
+    z = pipeline.prepare(data, Settings(), []).z  # the points the pipeline maps to
     default = subspace.block_rows
     rows = []
     runs = [(Q, False) for Q in PIPELINE_Q] + [(PIPELINE_Q[-1], True)]
@@ -187,7 +188,7 @@ def pipeline_runs(path: Path, true: np.ndarray) -> list[dict]:
         with mock.patch.object(subspace, "block_rows", raised), \
                 mock.patch.object(subspace, "gram_sums", sums):
             t0 = time.perf_counter()
-            res = pipeline.identify(data, pipeline.Settings(seed=0))
+            res = pipeline.identify(data, Settings(seed=0))
             dt = time.perf_counter() - t0
         phys = [m.frequency_hz for m in res.modes if m.physical]
         found, extra = match_modes(phys, list(true))

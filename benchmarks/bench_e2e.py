@@ -19,9 +19,9 @@ Extra figures:
 
 * **Replicates against one identification** (cases a and b): in this process, the pipeline's
   own preparation (band, reciprocity, channel scaling, line weights) is repeated, and
-  ``automodal.pipeline.run_replicates`` (the 100 replicates, with the pipeline's arguments) is
-  timed against one ``automodal.core.subspace.identify`` on the full data at the reference
-  order and block rows that ``automodal.pipeline.identify`` reports in ``result.orders``.
+  ``automodal.core.replicates.run_replicates`` (the 100 replicates, with the pipeline's
+  arguments) is timed against one ``automodal.core.subspace.identify`` on the full data at
+  the reference order and block rows that ``automodal.pipeline.identify`` reports in ``result.orders``.
 * **Peer**: the FRFs of case a through sdypy-EMA's LSCF (``pip install -e '.[bench]'``), in a
   fresh interpreter, from FRF arrays (read from a ``.npz``) to poles selected with
   ``select_closest_poles``. sdypy-EMA needs a person to pick the poles on a stability chart;
@@ -301,11 +301,12 @@ def bench_replicates(path: Path, repeat: int) -> dict:
     import numpy as np
 
     from automodal import pipeline
-    from automodal.core import bootstrap, subspace
+    from automodal.core import bootstrap, replicates, subspace
     from automodal.io.frf_file import read_frf
+    from automodal.settings import Settings
 
     data = read_frf(str(path))
-    settings = pipeline.Settings(seed=0, n_bootstrap=N_BOOTSTRAP)
+    settings = Settings(seed=0, n_bootstrap=N_BOOTSTRAP)
     t_pipe, _, result = timed_min(lambda: pipeline.identify(data, settings), 1)
     n_hi = int(result.orders["reference"])
     q = int(result.orders["block_rows"])
@@ -330,12 +331,12 @@ def bench_replicates(path: Path, repeat: int) -> dict:
 
     t_one1, _, _ = timed_min(one_single_thread, repeat)
     t_rep, t_rep_first, reps = timed_min(
-        lambda: pipeline.run_replicates(basis, Hs, n_hi, T, weights, settings.jobs), repeat
+        lambda: replicates.run_replicates(basis, Hs, n_hi, T, weights, settings.jobs), repeat
     )
     t_rep1, _, _ = timed_min(
-        lambda: pipeline.run_replicates(basis, Hs, n_hi, T, weights, 1), repeat
+        lambda: replicates.run_replicates(basis, Hs, n_hi, T, weights, 1), repeat
     )
-    jobs = pipeline.replicate_workers(settings.jobs, basis, Hs, n_hi, settings.n_bootstrap)
+    jobs = replicates.replicate_workers(settings.jobs, basis, Hs, n_hi, settings.n_bootstrap)
 
     # where the replicates' time goes: the one Gram product, and the stacked
     # eigenproblems alone (one thread), which no exact replicate model can skip
@@ -490,7 +491,7 @@ def render(meta: dict, cli: dict, ratios: dict, peer: dict | None) -> str:
                 " weights=lw, estimate_bd_=True)` (row basis, projection, A/C, B/D), timed"
                 " with the default BLAS threads and with one (each replicate uses one); the"
                 " ratios divide by the faster of the two;"
-                " replicates = `pipeline.run_replicates(basis, Hs, n_ref, T, weights, jobs)`"
+                " replicates = `replicates.run_replicates(basis, Hs, n_ref, T, weights, jobs)`"
                 " with the pipeline's basis and weights (Gram sums + 100 small problems), jobs"
                 " as the pipeline chooses them (`jobs=None`) and with 1 job. Minimum of the"
                 " repeats, in this process (warm imports; the 'cold' column is the first call)."

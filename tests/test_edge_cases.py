@@ -32,7 +32,9 @@ from automodal.errors import InputError
 from automodal.frfdata import FRFData
 from automodal.io.frf_file import read_frf, write_frf
 from automodal.io.readers import MAX_VALUES, read_any
-from automodal.pipeline import Result, Settings, identify
+from automodal.pipeline import identify
+from automodal.result import Result
+from automodal.settings import Settings
 
 ROOT = Path(__file__).resolve().parents[1]
 SAMPLE = ROOT / "sample_data" / "chain6.h5"

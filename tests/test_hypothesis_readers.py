@@ -857,7 +857,8 @@ def test_valid_files_are_identified_or_refused_in_one_line(case: Input) -> None:
     line, extreme magnitudes, one line, pure noise) reads; the pipeline then identifies it,
     with reports that can be written, or refuses it in one line: nothing else."""
     from automodal.io.report import report_dict, save_report
-    from automodal.pipeline import Settings, identify
+    from automodal.pipeline import identify
+    from automodal.settings import Settings
 
     with folder() as where:
         path = case.write(where)

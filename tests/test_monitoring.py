@@ -23,7 +23,7 @@ from automodal.core import simulate as sim
 from automodal.io.frf_file import write_frf
 from automodal.io.history import is_history_file, read_history, write_history
 from automodal.io.report import read_report
-from automodal.pipeline import Settings
+from automodal.settings import Settings
 
 N_MEASUREMENTS = 10
 FIRST_DAMAGED = 7

@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 import cases
-from automodal.pipeline import Settings, identify
+from automodal.pipeline import identify
+from automodal.settings import Settings
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -28,7 +28,9 @@ from automodal.io.report import (  # noqa: E402
     save_report,
     write_report,
 )
-from automodal.pipeline import Result, Settings, identify  # noqa: E402
+from automodal.pipeline import identify  # noqa: E402
+from automodal.result import Result  # noqa: E402
+from automodal.settings import Settings  # noqa: E402
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 

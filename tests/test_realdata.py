@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 
 from automodal.frfdata import FRFData
-from automodal.pipeline import Settings, identify
+from automodal.pipeline import identify
+from automodal.settings import Settings
 
 ROOT = Path(__file__).resolve().parents[1]
 REALDATA = ROOT.parent / "shared" / "realdata"

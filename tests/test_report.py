@@ -19,7 +19,9 @@ from automodal.frfdata import FRFData
 from automodal.io import report as report_module
 from automodal.io.frf_file import write_frf
 from automodal.io.report import format_table, read_report, report_dict, write_report
-from automodal.pipeline import PoleTable, Result, Settings, identify
+from automodal.pipeline import identify
+from automodal.result import PoleTable, Result
+from automodal.settings import Settings
 
 FIXED_TIME = "2026-01-02T03:04:05Z"
 

@@ -20,7 +20,8 @@ from automodal.core import spectra
 from automodal.core.from_time import frfdata_from_time
 from automodal.errors import InputError
 from automodal.io.time_file import read_time, write_time
-from automodal.pipeline import Settings, identify
+from automodal.pipeline import identify
+from automodal.settings import Settings
 from automodal.timedata import TimeSeries
 
 FS = 128.0

@@ -41,6 +41,7 @@ import dataclasses
 import numpy as np
 
 from automodal.core import subspace
+from automodal.core.magnitude import mean_log_magnitude
 from automodal.errors import InputError
 from automodal.frfdata import FRFData
 
@@ -444,10 +445,7 @@ def _check_trend(H: np.ndarray, source: str | None, warnings: list[str]) -> None
 def _log_magnitude(H: np.ndarray) -> tuple[np.ndarray, float]:
     """The natural log of the mean over channels of ``|H|`` scaled to unit RMS per output,
     and its line-to-line roughness (robust: median absolute second difference)."""
-    mag = np.mean(np.abs(H) / subspace.channel_scales(H)[None, :, None], axis=(1, 2))
-    logm = np.log(np.maximum(mag, np.max(mag) * 1e-15))
-    roughness = 1.4826 * float(np.median(np.abs(np.diff(logm, 2)))) / np.sqrt(6.0)
-    return logm, roughness
+    return mean_log_magnitude(H, subspace.channel_scales(H), floor_ratio=1e-15)
 
 
 def edge_peaks(H: np.ndarray) -> list[str]:

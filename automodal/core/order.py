@@ -1,8 +1,36 @@
-"""Model order: the misfit scan and the choice of the orders the pipeline uses."""
+"""Model order: the misfit scan and the choice of the orders the pipeline uses.
+
+:func:`select_orders` is the pipeline's one call: the largest order the data allow
+(:func:`order_limit`, bootstrap replicates included), the staged misfit scan
+(:func:`scan`, sized by :func:`count_peaks`), ``n0`` where the misfit reaches its floor
+(:func:`order_at_floor`) and the excessive reference order (:func:`excessive_order`).
+"""
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
+
+from automodal.core import subspace
+from automodal.core.magnitude import (
+    log_magnitude,
+    mean_magnitude,
+    peak_threshold,
+    roughness,
+)
+from automodal.errors import InputError
+
+BOOTSTRAP_LINE_FRACTION = 0.6
+"""Unique lines in a frequency-line replicate are about 63 % of all lines: the order is
+limited so that a replicate still has enough (``2 * 0.6 N nu >= q (nu + ny)``)."""
+
+MAX_SCAN_ORDER = 240
+"""Highest order of the automatic misfit scan (``--order`` can set a lower limit)."""
+
+MAX_REFERENCE_ORDER = 320
+"""Highest automatic reference order: each replicate costs ``O(n^3)``, and at 320 states 100
+replicates take several seconds on two cores. ``--order`` can raise it."""
 
 
 def log_misfit(H_model: np.ndarray, H: np.ndarray) -> float:
@@ -111,8 +139,6 @@ def misfit_scan(
     misfit : ndarray
         ``MC`` per order.
     """
-    from automodal.core import subspace
-
     N, ny, _ = H.shape
     O, _, _ = subspace.observability(basis, H, int(np.max(orders)), weights=weights)
     sub = np.unique(np.linspace(0, N - 1, min(N, max_lines)).round().astype(int))
@@ -153,3 +179,164 @@ def plateaued(orders: np.ndarray, misfit, patience: int = 24) -> bool:
     if not past.any() or past.all():
         return False
     return bool(np.min(misfit[~past]) > 0.9 * np.min(misfit[past]))
+
+
+# ---------------------------------------------------------------------------------------
+# The pipeline's choice of orders
+# ---------------------------------------------------------------------------------------
+
+
+def order_limit(n_lines: int, ny: int, nu: int) -> int:
+    """Largest even order the data allow, bootstrap replicates included (0 if none)."""
+    budget = 2.0 * BOOTSTRAP_LINE_FRACTION * n_lines * nu
+    n = 2
+    while True:
+        nxt = n + 2
+        q = subspace.block_rows(nxt, ny)
+        if q * (nu + ny) > budget or nxt > 2000:
+            return n if subspace.block_rows(n, ny) * (nu + ny) <= budget else 0
+        n = nxt
+
+
+def lines_needed(n: int, ny: int, nu: int) -> int:
+    """Fewest frequency lines for which :func:`order_limit` allows order ``n``."""
+    q = subspace.block_rows(n, ny)
+    return int(np.ceil(q * (nu + ny) / (2.0 * BOOTSTRAP_LINE_FRACTION * nu)))
+
+
+def count_peaks(H: np.ndarray, window: int = 5) -> int:
+    """Resonance-like peaks of the mean magnitude over channels (sizes the order scan).
+
+    A line counts when it is the largest within ``window`` lines on either side and stands
+    above the smallest value there by more than the threshold: ``max(0.5, 6 s)`` on the
+    natural-log scale, with ``s`` the line-to-line roughness of the log magnitude (robust:
+    median absolute second difference; :mod:`automodal.core.magnitude`). On pure noise
+    the roughness is large and few "peaks" count, which keeps the scan short.
+    """
+    from scipy.ndimage import maximum_filter1d, minimum_filter1d
+
+    mag = mean_magnitude(H)
+    if not np.any(mag > 0):
+        return 0
+    logm = log_magnitude(mag, 1e-12)
+    thr = peak_threshold(roughness(logm))
+    size = 2 * window + 1
+    is_max = logm >= maximum_filter1d(logm, size, mode="nearest")
+    rise = logm - minimum_filter1d(logm, 8 * size, mode="nearest")
+    return int(np.count_nonzero(is_max & (rise > thr)))
+
+
+def scan_orders(n_scan: int) -> np.ndarray:
+    """Orders of the misfit scan: every even order to 60, then steps of 4, then of 8 above 120."""
+    orders = [n for n in range(2, min(n_scan, 60) + 1, 2)]
+    orders += [n for n in range(64, min(n_scan, 120) + 1, 4)]
+    orders += [n for n in range(128, n_scan + 1, 8)]
+    return np.array(orders, dtype=int)
+
+
+def scan(
+    z: np.ndarray, H: np.ndarray, weights: np.ndarray, n_max: int, n_peaks: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """The misfit scan, in stages.
+
+    Up to ``max(2 n_peaks + 40, 60)`` states first, and twice as far (with the block rows
+    that order needs) while the misfit still falls at the end of a stage
+    (:func:`still_falling`), up to ``n_max``. Small systems pay only for a small
+    projection; systems with many overlapping modes (80 modes, 22 visible peaks) still
+    reach their order.
+
+    Returns
+    -------
+    orders, misfit : ndarray
+        As :func:`misfit_scan` gives them for the last stage.
+    """
+    N, ny, nu = H.shape
+    while n_max > 4 and subspace.scan_block_rows(n_max, ny) * (nu + ny) > 2 * N * nu:
+        n_max -= 2  # the scan's larger block rows must fit the (full) data too
+    stage = min(n_max, max(2 * n_peaks + 40, 60))
+    while True:
+        planned = scan_orders(max(4, stage))
+        basis = subspace.row_basis(z, subspace.scan_block_rows(int(planned[-1]), ny))
+        orders, misfit = misfit_scan(
+            z, H, planned, basis, weights=weights, stop_after=2 * n_peaks + 40
+        )
+        if orders.size < planned.size or stage >= n_max or not still_falling(orders, misfit):
+            return orders, misfit
+        stage = min(n_max, 2 * stage)
+
+
+@dataclass
+class OrderChoice:
+    """The orders :func:`select_orders` chose.
+
+    Attributes
+    ----------
+    scanned : ndarray of int
+        Orders of the misfit scan.
+    misfit : ndarray
+        ``MC`` at each scanned order.
+    n0 : int
+        Order at which the misfit reached its floor.
+    reference : int
+        The excessive order of the reference model and the replicates.
+    limit : int
+        Largest order the data (and ``max_order``) allowed.
+    """
+
+    scanned: np.ndarray
+    misfit: np.ndarray
+    n0: int
+    reference: int
+    limit: int
+
+
+def select_orders(
+    z: np.ndarray,
+    H: np.ndarray,
+    weights: np.ndarray,
+    max_order: int | None = None,
+    source: str | None = None,
+) -> OrderChoice:
+    """Scan the misfit and choose ``n0`` and the reference order.
+
+    Parameters
+    ----------
+    z : ndarray, shape (N,)
+        Lines on the unit circle.
+    H : ndarray, shape (N, ny, nu)
+        FRF, channel-scaled.
+    weights : ndarray, shape (N,)
+        Line weights of the fits.
+    max_order : int, optional
+        Largest order considered (rounded down to even); it also lifts the automatic cap
+        :data:`MAX_REFERENCE_ORDER` of the reference order.
+    source : str, optional
+        The data's file, named in errors.
+
+    Raises
+    ------
+    InputError
+        When the band has too few lines for ``max_order``, or for order 4.
+    """
+    N, ny, nu = H.shape
+    n_limit = order_limit(N, ny, nu)
+    if max_order is not None:
+        need = lines_needed(int(max_order), ny, nu)
+        if N < need:
+            raise InputError(
+                f"{N} frequency lines in the band are too few for model order {max_order}:"
+                f" the identification needs at least {need}",
+                source,
+            )
+        n_limit = min(n_limit, int(max_order) - int(max_order) % 2)
+    if n_limit < 4:
+        raise InputError(
+            f"{N} frequency lines in the band are too few: the identification needs at least"
+            f" {lines_needed(4, ny, nu)}",
+            source,
+        )
+    orders, misfit = scan(z, H, weights, min(n_limit, MAX_SCAN_ORDER), count_peaks(H))
+    n0 = order_at_floor(orders, misfit)
+    cap = n_limit if max_order is not None else min(n_limit, MAX_REFERENCE_ORDER)
+    return OrderChoice(scanned=orders, misfit=misfit, n0=n0,
+                       reference=excessive_order(n0, cap), limit=n_limit)

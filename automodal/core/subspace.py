@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import scipy.linalg as sla
@@ -550,13 +550,31 @@ def shift_invariance(O: np.ndarray, ny: int, basis: RowBasis) -> tuple[np.ndarra
 
 
 def _modal_regressor(
-    z: np.ndarray, A: np.ndarray, C: np.ndarray
+    z: np.ndarray,
+    A: np.ndarray,
+    C: np.ndarray,
+    eigen: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(C V, g, V)`` with ``g[k, a] = 1 / (z_k - lambda_a)``, so that
-    ``C (z_k I - A)^-1 = (C V) diag(g_k) V^-1``."""
-    lam, V = np.linalg.eig(A)
+    ``C (z_k I - A)^-1 = (C V) diag(g_k) V^-1`` (``eigen``: ``np.linalg.eig(A)`` if
+    already known)."""
+    lam, V = np.linalg.eig(A) if eigen is None else eigen
     g = 1.0 / (z[:, None] - lam[None, :])
     return C @ V, g, V
+
+
+def modal_sum(
+    CV: np.ndarray, lam: np.ndarray, L: np.ndarray, points: np.ndarray
+) -> np.ndarray:
+    """``sum_a (C v_a) l_a^T / (p - lambda_a)`` at each point ``p``: the modal terms of an
+    FRF (``CV = C V``, ``L = V^-1 B``, over any subset of the modes).
+
+    Returns
+    -------
+    ndarray, shape (len(points), ny, nu)
+    """
+    g = 1.0 / (points[:, None] - lam[None, :])
+    return np.einsum("ia,ka,aj->kij", CV, g, L, optimize=True)
 
 
 def estimate_bd(
@@ -566,6 +584,7 @@ def estimate_bd(
     C: np.ndarray,
     with_d: bool = True,
     weights: np.ndarray | None = None,
+    eigen: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """``B`` and ``D`` by linear least squares with ``A`` and ``C`` fixed.
 
@@ -589,6 +608,8 @@ def estimate_bd(
         Estimate the feed-through ``D`` (otherwise it is zero).
     weights : ndarray, shape (N,), optional
         Line weights ``c_k`` (default ones).
+    eigen : (ndarray, ndarray), optional
+        ``np.linalg.eig(A)``, when the caller has it already.
 
     Returns
     -------
@@ -598,7 +619,7 @@ def estimate_bd(
     N, ny, nu = H.shape
     n = A.shape[0]
     c = np.ones(N) if weights is None else np.asarray(weights, dtype=float)
-    CV, g, V = _modal_regressor(z, A, C)
+    CV, g, V = _modal_regressor(z, A, C, eigen)
     if np.linalg.cond(V) > 1e8:
         return _estimate_bd_stacked(z, H, A, C, with_d, c)
     Vinv = np.linalg.inv(V)
@@ -671,9 +692,8 @@ def frequency_response(
     -------
     ndarray, shape (len(points), ny, nu)
     """
-    CV, g, V = _modal_regressor(np.asarray(points), A, C)
-    VB = np.linalg.solve(V, B)
-    return D[None] + np.einsum("ia,ka,aj->kij", CV, g, VB, optimize=True)
+    lam, V = np.linalg.eig(A)
+    return D[None] + modal_sum(C @ V, lam, np.linalg.solve(V, B), np.asarray(points))
 
 
 # ---------------------------------------------------------------------------------------
@@ -698,6 +718,10 @@ class StateSpaceModel:
         Leading singular values of ``L22`` (a diagnostic for the order).
     path : str
         ``"gram"`` or ``"qr"``: how the observability subspace was computed.
+    eigen : (ndarray, ndarray) or None
+        ``np.linalg.eig(Ad)`` when the identification computed it (for ``B``, ``D``), so
+        that users of the model (:class:`automodal.core.modal_model.ModalModel`) need not
+        decompose ``Ad`` again.
     """
 
     Ad: np.ndarray
@@ -708,11 +732,18 @@ class StateSpaceModel:
     q: int
     singular_values: np.ndarray
     path: str = "gram"
+    eigen: tuple[np.ndarray, np.ndarray] | None = field(default=None, repr=False, compare=False)
 
     @property
     def order(self) -> int:
         """Number of states."""
         return int(self.Ad.shape[0])
+
+    def rescaled(self, scales: np.ndarray) -> StateSpaceModel:
+        """The same model with each output multiplied by ``scales`` (``Cd``, ``Dd``): a
+        model identified on channel-scaled data back in the data's units."""
+        s = np.asarray(scales)[:, None]
+        return replace(self, Cd=self.Cd * s, Dd=None if self.Dd is None else self.Dd * s)
 
     def continuous(self) -> tuple[np.ndarray, np.ndarray | None, np.ndarray, np.ndarray | None]:
         """``(A, B, C, D)`` in continuous time (bilinear map back)."""
@@ -803,19 +834,56 @@ def identify(
     """
     N, ny, nu = H.shape
     q = block_rows(n, ny) if q is None else int(q)
+    _check_sizes(N, ny, nu, n, q)
+    s = channel_scales(H) if scale else np.ones(ny)
+    Hs = H / s[None, :, None]
+    model = identify_scaled(z, Hs, n, T, row_basis(z, q, basis), method, estimate_bd_, weights)
+    return model.rescaled(s)
+
+
+def identify_scaled(
+    z: np.ndarray,
+    Hs: np.ndarray,
+    n: int,
+    T: float,
+    basis: RowBasis,
+    method: str = "auto",
+    estimate_bd_: bool = True,
+    weights: np.ndarray | None = None,
+) -> StateSpaceModel:
+    """:func:`identify` on data already scaled, with a given row basis.
+
+    The model is in the units of ``Hs`` (:meth:`StateSpaceModel.rescaled` maps it back);
+    its ``path`` says whether the Gram or the QR path gave the subspace, and ``eigen``
+    holds the one eigendecomposition of ``Ad`` (used for ``B`` and ``D``, and kept for
+    the model's users). The pipeline's reference model comes from here.
+
+    Parameters
+    ----------
+    z, n, T, method, estimate_bd_, weights
+        As in :func:`identify`.
+    Hs : ndarray, shape (N, ny, nu)
+        FRF, channel-scaled as the caller wants it.
+    basis : RowBasis
+        Row basis of ``q`` block rows at ``z``.
+    """
+    N, ny, nu = Hs.shape
+    q = basis.q
+    _check_sizes(N, ny, nu, n, q)
+    O, sv, path = observability(basis, Hs, n, method, weights)
+    A, C = shift_invariance(O, ny, basis)
+    B = D = eigen = None
+    if estimate_bd_:
+        eigen = np.linalg.eig(A)
+        B, D = estimate_bd(z, Hs, A, C, weights=weights, eigen=eigen)
+    return StateSpaceModel(
+        Ad=A, Bd=B, Cd=C, Dd=D, T=T, q=q, singular_values=sv, path=path, eigen=eigen
+    )
+
+
+def _check_sizes(N: int, ny: int, nu: int, n: int, q: int) -> None:
+    """Refuse block rows that cannot hold order ``n``, or too few lines for them."""
     if (q - 1) * ny < n:
         raise ValueError(f"q = {q} block rows cannot hold order {n} with {ny} outputs")
     if 2 * N * nu < q * (nu + ny):
         raise ValueError(f"{N} lines are too few for order {n}: need {min_lines(n, ny, nu, q)}")
-    s = channel_scales(H) if scale else np.ones(ny)
-    Hs = H / s[None, :, None]
-    rb = row_basis(z, q, basis)
-    O, sv, path = observability(rb, Hs, n, method, weights)
-    A, Cs = shift_invariance(O, ny, rb)
-    Bd = Dd = None
-    if estimate_bd_:
-        Bd, Ds = estimate_bd(z, Hs, A, Cs, weights=weights)
-        Dd = Ds * s[:, None]
-    return StateSpaceModel(
-        Ad=A, Bd=Bd, Cd=Cs * s[:, None], Dd=Dd, T=T, q=q, singular_values=sv, path=path
-    )

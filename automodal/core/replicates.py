@@ -1,0 +1,228 @@
+"""Running the bootstrap replicates: chunks of stacked small problems on worker threads.
+
+Frequency-line replicates share one batched Gram product
+(:func:`automodal.core.subspace.gram_sums`); record replicates each average a resample of
+the repeated records. Either way each chunk of replicates is one stacked Schur complement,
+``eigh``, shift invariance and ``eig`` (:func:`automodal.core.bootstrap.replicates_from_schur`).
+The chunks are fixed by the problem's size and combined in chunk order, each computed
+with one BLAS thread, so the result never depends on the number of workers.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from automodal.core import bootstrap, subspace
+from automodal.core.parallel import gather, thread_map, worker_count
+from automodal.errors import InputError
+
+REPLICATE_CHUNK_BYTES = 32 * 2**20
+"""Memory for the stacked arrays of one chunk of replicates (Schur complements,
+eigenvectors, ``A``, complex eigenvectors): bounds the memory whatever ``B``."""
+
+
+def replicate_chunks(n_replicates: int, m: int, n: int) -> list[range]:
+    """Chunks of replicates computed by one stacked call each.
+
+    The size depends only on the problem (never on the number of workers), so results
+    cannot depend on ``jobs``: at most a quarter of the replicates (so two workers share
+    the load) and :data:`REPLICATE_CHUNK_BYTES` of stacked arrays.
+    """
+    per = 8.0 * (3 * m * m + 6 * n * n + 2 * m * n)
+    size = max(1, min(math.ceil(n_replicates / 4), int(REPLICATE_CHUNK_BYTES // per)))
+    return [range(i, min(n_replicates, i + size)) for i in range(0, n_replicates, size)]
+
+
+def replicate_flops(m: int, n: int) -> float:
+    """Rough floating-point work of one replicate: eigh of ``m x m``, eig of ``n x n``."""
+    return 9.0 * m**3 + 25.0 * n**3
+
+
+def replicate_workers(
+    jobs: int | None, basis: subspace.RowBasis, H: np.ndarray, n: int, n_replicates: int
+) -> int:
+    """Worker threads :func:`run_replicates` uses: ``jobs`` if given, else all cores when
+    the Gram product and the replicates' eigenproblems pay for them."""
+    N, ny, nu = H.shape
+    m = basis.q * ny
+    gram = 4.0 * n_replicates * N * m * (ny + nu)
+    return worker_count(jobs, n_replicates, replicate_flops(m, n) * n_replicates + gram)
+
+
+def run_replicates(
+    basis: subspace.RowBasis,
+    H: np.ndarray,
+    n: int,
+    T: float,
+    weights: np.ndarray,
+    jobs: int | None,
+    progress: Callable[[int], None] | None = None,
+) -> list[bootstrap.ReplicateModes]:
+    """All frequency-line replicates' modes: one batched Gram product, then stacked small
+    problems, in ``jobs`` threads (``None``: :func:`replicate_workers` decides).
+
+    Parameters
+    ----------
+    basis : RowBasis
+        Row basis of the reference model at the analysed lines.
+    H : ndarray, shape (N, ny, nu)
+        FRF, channel-scaled.
+    n : int
+        Model order.
+    T : float
+        Bilinear scale.
+    weights : ndarray, shape (B, N)
+        Line weights of each replicate (bootstrap counts times the line weights).
+    jobs : int or None
+        Worker threads.
+    progress : callable, optional
+        Called with the number of replicates finished since the last call.
+    """
+    B = weights.shape[0]
+    ny = H.shape[1]
+    m = basis.q * ny
+    n_jobs = replicate_workers(jobs, basis, H, n, B)
+
+    def work(r: range) -> list[bootstrap.ReplicateModes]:
+        S = subspace.schur_complement(sums, slice(r.start, r.stop))
+        return bootstrap.replicates_from_schur(
+            S, n, basis, T, ny,
+            qr_fallback=lambda i: subspace.projected_output_qr(basis, H, weights[r.start + i]),
+        )
+
+    chunks = replicate_chunks(B, m, n)
+    with thread_map(n_jobs) as pmap:
+        sums = subspace.gram_sums(basis, H, weights, map_fn=pmap)
+        return gather(pmap(work, chunks), chunks, progress)
+
+
+def run_record_replicates(
+    basis: subspace.RowBasis,
+    records: np.ndarray,
+    n: int,
+    T: float,
+    weights: np.ndarray,
+    line_weights: np.ndarray,
+    jobs: int | None,
+    progress: Callable[[int], None] | None = None,
+) -> list[bootstrap.ReplicateModes]:
+    """Replicates that each average a resample of the repeated records.
+
+    The Gram sums are not linear in the FRF, so each replicate forms its own Schur
+    complement; the rest is stacked as in :func:`run_replicates`, and likewise the result
+    does not depend on ``jobs``.
+
+    Parameters
+    ----------
+    records : ndarray, shape (R, N, ny, nu)
+        Repeated records over the analysed lines, channel-scaled.
+    weights : ndarray, shape (B, R)
+        Record multiplicities of each replicate.
+    line_weights : ndarray, shape (N,)
+        Line weights of every replicate's fit.
+    basis, n, T, jobs, progress
+        As in :func:`run_replicates`.
+    """
+    B = weights.shape[0]
+    ny = records.shape[2]
+    m = basis.q * ny
+    n_jobs = worker_count(jobs, B, replicate_flops(m, n) * B)
+
+    def average(b: int) -> np.ndarray:
+        return np.einsum("r,rkij->kij", weights[b] / weights[b].sum(), records)
+
+    def work(r: range) -> list[bootstrap.ReplicateModes]:
+        Hb = [average(b) for b in r]
+        S = np.stack([subspace.single_schur(basis, h, line_weights) for h in Hb])
+        return bootstrap.replicates_from_schur(
+            S, n, basis, T, ny,
+            qr_fallback=lambda i: subspace.projected_output_qr(basis, Hb[i], line_weights),
+        )
+
+    chunks = replicate_chunks(B, m, n)
+    with thread_map(n_jobs) as pmap:
+        return gather(pmap(work, chunks), chunks, progress)
+
+
+def band_records(
+    records: np.ndarray | None,
+    frequency: np.ndarray,
+    band_frequency: np.ndarray,
+    reciprocal: bool,
+    resample: str,
+    source: str | None = None,
+) -> np.ndarray | None:
+    """The repeated records over the analysed lines (oriented like the analysed FRF), or
+    ``None`` when the replicates resample frequency lines.
+
+    Parameters
+    ----------
+    records : ndarray, shape (R, N_all, ny, nu) or None
+        The data's repeated records.
+    frequency : ndarray, shape (N_all,)
+        The data's lines (Hz).
+    band_frequency : ndarray
+        The analysed lines (Hz), a subset of ``frequency``.
+    reciprocal : bool
+        Whether inputs and outputs were swapped (the records are transposed likewise).
+    resample : {"auto", "lines", "records"}
+        What the replicates resample (``"auto"``: records when there are two or more).
+    source : str, optional
+        The data's file, named in errors.
+    """
+    if resample not in ("auto", "lines", "records"):
+        raise ValueError(f"unknown resample {resample!r}")
+    usable = records is not None and records.shape[0] >= 2
+    if resample == "records" and not usable:
+        raise InputError("resampling records needs at least two records (/records/frf)",
+                         source)
+    if resample == "lines" or not usable:
+        return None
+    rec = records[:, np.isin(frequency, band_frequency)]
+    return np.ascontiguousarray(rec.transpose(0, 1, 3, 2)) if reciprocal else rec
+
+
+@dataclass
+class ReplicatePoles:
+    """The oscillatory modes of all replicates, stacked.
+
+    Attributes
+    ----------
+    poles : ndarray, shape (M,)
+        Continuous-time poles (rad/s).
+    mu : ndarray, shape (M,)
+        Discrete-time poles.
+    shapes : ndarray, shape (ny, M)
+        Mode shapes in scaled units, unit norm.
+    replicate : ndarray of int, shape (M,)
+        Replicate of each pole.
+    n_qr : int
+        Replicates computed on the QR path.
+    """
+
+    poles: np.ndarray
+    mu: np.ndarray
+    shapes: np.ndarray
+    replicate: np.ndarray
+    n_qr: int
+
+
+def stack_replicates(
+    reps: list[bootstrap.ReplicateModes], ny: int, pole_shift: float = 0.0
+) -> ReplicatePoles:
+    """All replicates' modes in one set of arrays, ``pole_shift`` added to every pole (an
+    exponential window's decay, see :meth:`automodal.core.modal_model.ModalModel.modes`)."""
+    if not reps:
+        empty = np.zeros(0, complex)
+        return ReplicatePoles(poles=empty, mu=empty, shapes=np.zeros((ny, 0), complex),
+                              replicate=np.zeros(0, int), n_qr=0)
+    replicate = np.concatenate([np.full(len(r.poles), b) for b, r in enumerate(reps)])
+    poles = np.concatenate([r.poles for r in reps]) + pole_shift
+    mu = np.concatenate([r.mu for r in reps])
+    shapes = np.hstack([r.shapes for r in reps])
+    return ReplicatePoles(poles=poles, mu=mu, shapes=shapes, replicate=replicate.astype(int),
+                          n_qr=sum(r.path == "qr" for r in reps))

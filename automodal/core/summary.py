@@ -1,0 +1,154 @@
+"""Per-cluster statistics: features, physicalness and the reported modes.
+
+Each surviving cluster (or, for a near-repeated cluster, each member rank) becomes one
+:class:`~automodal.result.IdentifiedMode`: medians, spreads and 95 % intervals of its
+members' frequency and damping, the reference model's shape with its members' spread,
+and the cluster's physicalness (anchored fuzzy c-means on three features).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from automodal.core import clustering, physicalness
+from automodal.core.modal import ModeSet, mpc, normalise_shapes, unit_max_shapes
+from automodal.result import IdentifiedMode
+
+
+def percentiles(x: np.ndarray) -> tuple[float, float]:
+    """The 2.5 % and 97.5 % percentiles (a 95 % interval)."""
+    lo, hi = np.percentile(x, [2.5, 97.5])
+    return float(lo), float(hi)
+
+
+def sample_std(x: np.ndarray) -> float:
+    """Sample standard deviation (``ddof=1``); 0 for fewer than two values."""
+    return float(np.std(x, ddof=1)) if x.size > 1 else 0.0
+
+
+def shape_spread(rep: np.ndarray, members: np.ndarray) -> np.ndarray:
+    """Per-channel spread of member shapes (columns) aligned by a complex scale to the
+    representative ``rep``; zeros for fewer than two members."""
+    if members.shape[1] < 2:
+        return np.zeros(rep.size)
+    alpha = (members.conj().T @ rep) / np.sum(np.abs(members) ** 2, axis=0)
+    aligned = members * alpha[None, :]
+    return np.sqrt(np.mean(np.abs(aligned - aligned.mean(axis=1, keepdims=True)) ** 2, axis=1))
+
+
+def summarise_clusters(
+    labels: np.ndarray,
+    rho: np.ndarray,
+    poles: np.ndarray,
+    shapes_scaled: np.ndarray,
+    replicate: np.ndarray,
+    refsub: clustering.ReferenceSubspaces,
+    ref: ModeSet,
+    scales: np.ndarray,
+    contribution: np.ndarray,
+    n_bootstrap: int,
+    min_physicalness: float,
+) -> list[IdentifiedMode]:
+    """Features, physicalness and statistics of every surviving cluster.
+
+    The decorrelation feature uses each member's correlation ``rho`` with the cluster's
+    reference subspace, and the scatter feature the members' distance from the reference
+    model's pole of the same rank: both stay meaningful for a cluster of one member. A
+    cluster whose members are mostly unstable is never physical (``method.md``, 1.7).
+
+    Parameters
+    ----------
+    labels, rho : ndarray, shape (M,)
+        Cluster of each bootstrap pole (``-1`` the Trashbox) and its correlation.
+    poles : ndarray, shape (M,)
+        Bootstrap poles (continuous time).
+    shapes_scaled : ndarray, shape (ny, M)
+        Their shapes in scaled units.
+    replicate : ndarray of int, shape (M,)
+        Replicate of each pole.
+    refsub : ReferenceSubspaces
+        The clusters' reference groups and dimensions.
+    ref : ModeSet
+        The reference model's modes (scaled shapes).
+    scales : ndarray, shape (ny,)
+        Channel scales (undone in the reported shapes).
+    contribution : ndarray
+        Modal contribution of each reference mode.
+    n_bootstrap : int
+        Replicates.
+    min_physicalness : float
+        Physicalness from which a mode is called physical.
+
+    Returns
+    -------
+    list of IdentifiedMode
+        Sorted by frequency, ``id`` from 1.
+    """
+    clusters = [c for c in range(len(refsub.groups)) if np.any(labels == c)]
+    feats, per_cluster = [], []
+    for c in clusters:
+        idx = np.flatnonzero(labels == c)
+        rank = clustering.rank_within_replicate(poles[idx], replicate[idx])
+        group = refsub.groups[c][: refsub.dims[c]]  # the representatives, in rank order
+        centre = ref.poles[group][np.minimum(rank, group.size - 1)]
+        rel = np.abs(poles[idx] - centre) / np.abs(centre)
+        feats.append(
+            physicalness.cluster_features(
+                idx.size, n_bootstrap, int(refsub.dims[c]), rho[idx], rel,
+                float(np.max(contribution[group])),
+            )
+        )
+        per_cluster.append((idx, rank))
+    phys = physicalness.physicalness(np.array(feats)) if feats else np.zeros(0)
+    for i, (idx, _) in enumerate(per_cluster):
+        if np.median(poles[idx].real) >= 0:
+            phys[i] = 0.0
+
+    shapes_data = normalise_shapes(shapes_scaled * scales[:, None])
+    ref_shapes = normalise_shapes(ref.shapes * scales[:, None])
+    modes: list[IdentifiedMode] = []
+    for c, (idx, rank), f, p in zip(clusters, per_cluster, feats, phys):
+        group = refsub.groups[c][: refsub.dims[c]]
+        for r in range(int(refsub.dims[c])):
+            sel = idx[rank == r]
+            if sel.size == 0:
+                continue
+            fr = np.abs(poles[sel]) / (2 * np.pi)
+            zt = -poles[sel].real / np.abs(poles[sel])
+            rep = ref_shapes[:, group[min(r, group.size - 1)]]
+            rep_unit = unit_max_shapes(rep[:, None])[:, 0]
+            members = unit_max_shapes(shapes_data[:, sel])
+            modes.append(
+                IdentifiedMode(
+                    id=0,
+                    frequency_hz=float(np.median(fr)),
+                    frequency_std_hz=sample_std(fr),
+                    frequency_ci95_hz=percentiles(fr),
+                    damping_ratio=float(np.median(zt)),
+                    damping_std=sample_std(zt),
+                    damping_ci95=percentiles(zt),
+                    physicalness=float(p),
+                    physical=bool(p >= min_physicalness),
+                    n_members=int(sel.size),
+                    mode_shape=rep_unit,
+                    mode_shape_std=shape_spread(rep_unit, members),
+                    mpc=float(mpc(rep_unit)[0]),
+                    cluster=int(c),
+                    cluster_dim=int(refsub.dims[c]),
+                    features=dict(zip(physicalness.FEATURE_NAMES, map(float, f))),
+                )
+            )
+    modes.sort(key=lambda m: m.frequency_hz)
+    for i, m in enumerate(modes, start=1):
+        m.id = i
+    return modes
+
+
+def physical_reference_modes(
+    modes: list[IdentifiedMode], refsub: clustering.ReferenceSubspaces
+) -> np.ndarray:
+    """Indices (sorted, unique) of the reference modes that represent the physical modes'
+    clusters: the modes an FRF synthesised from the physical modes keeps."""
+    keep = {int(i) for m in modes if m.physical
+            for i in refsub.groups[m.cluster][: m.cluster_dim]}
+    return np.array(sorted(keep), dtype=int)

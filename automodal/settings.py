@@ -1,0 +1,146 @@
+"""The settings of one identification, checked when they are made.
+
+:class:`Settings` is frozen and validated in ``__post_init__``: a bad value raises
+:class:`SettingsError`, which names the field and the values allowed. It is an
+:class:`~automodal.errors.InputError` (the command line prints one line and exits 2) and
+a :class:`ValueError` (what a library caller expects of a bad argument).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import numbers
+from dataclasses import dataclass
+from typing import Any
+
+from automodal.errors import InputError
+
+RESAMPLE_CHOICES = ("auto", "lines", "records")
+"""What a bootstrap replicate may resample (see :attr:`Settings.resample`)."""
+
+MIN_ORDER = 4
+"""Smallest ``max_order``: the order scan needs orders 2 and 4 (the command line's
+``--order`` has the same lower bound)."""
+
+
+class SettingsError(InputError, ValueError):
+    """A setting outside its allowed values (the message names the field)."""
+
+
+def _is_int(value: Any) -> bool:
+    return isinstance(value, numbers.Integral) and not isinstance(value, bool)
+
+
+def _is_real(value: Any) -> bool:
+    return isinstance(value, numbers.Real) and not isinstance(value, bool)
+
+
+def _refuse(name: str, value: Any, allowed: str) -> SettingsError:
+    return SettingsError(f"setting {name} = {value!r} is not allowed: it must be {allowed}")
+
+
+@dataclass(frozen=True)
+class Settings:
+    """Every parameter that influences a run (all have automatic defaults).
+
+    Every field is checked on creation (also by :func:`dataclasses.replace`); a bad value
+    raises :class:`SettingsError` naming the field and the allowed values.
+
+    Attributes
+    ----------
+    band_hz : (float, float) or None
+        Analysed band, two finite numbers ``0 <= lo < hi``; default the data's span (a
+        0 Hz line is left out). Stored as a tuple of floats.
+    n_bootstrap : int
+        Bootstrap replicates, at least 1 (the command line asks for at least 2).
+    seed : int
+        Seed of the resampling, ``>= 0``; the same seed gives the same result whatever
+        ``jobs``.
+    max_order : int or None
+        Largest model order (states) considered, at least :data:`MIN_ORDER`; an odd value
+        is rounded down to even. Default what the data allow.
+    jobs : int or None
+        Worker threads for the replicates, at least 1; ``None`` (the only "automatic"
+        value) uses all cores when the work pays for them. Never changes the result.
+    threshold : float
+        ``tau_1``, the correlation a mode needs to join a cluster, in ``(0, 1]``.
+    zeta_max : float
+        Largest damping ratio of a physical candidate, in ``(0, 1)``.
+    min_physicalness : float
+        Physicalness from which a cluster is called physical, in ``[0, 1]``.
+    coalescence : float
+        Poles closer than this many half-power bandwidths form one group, ``> 0``.
+    resample : {"auto", "lines", "records"}
+        What a bootstrap replicate resamples: the repeated records when the data have
+        at least two (``"auto"``), or the frequency lines.
+    """
+
+    band_hz: tuple[float, float] | None = None
+    n_bootstrap: int = 100
+    seed: int = 0
+    max_order: int | None = None
+    jobs: int | None = None
+    threshold: float = 0.8
+    zeta_max: float = 0.2
+    min_physicalness: float = 0.5
+    coalescence: float = 1.0
+    resample: str = "auto"
+
+    def __post_init__(self) -> None:
+        self._check_band()
+        if not (_is_int(self.n_bootstrap) and self.n_bootstrap >= 1):
+            raise _refuse("n_bootstrap", self.n_bootstrap, "an integer >= 1")
+        if not (_is_int(self.seed) and self.seed >= 0):
+            raise _refuse("seed", self.seed, "an integer >= 0")
+        if self.max_order is not None and not (
+            _is_int(self.max_order) and self.max_order >= MIN_ORDER
+        ):
+            raise _refuse("max_order", self.max_order,
+                          f"None (automatic) or an integer >= {MIN_ORDER}")
+        if self.jobs is not None and not (_is_int(self.jobs) and self.jobs >= 1):
+            raise _refuse("jobs", self.jobs, "None (all cores) or an integer >= 1")
+        self._check_interval("threshold", self.threshold, 0.0, 1.0, "a number in (0, 1]",
+                             closed_hi=True)
+        self._check_interval("zeta_max", self.zeta_max, 0.0, 1.0, "a number in (0, 1)")
+        self._check_interval("min_physicalness", self.min_physicalness, 0.0, 1.0,
+                             "a number in [0, 1]", closed_lo=True, closed_hi=True)
+        self._check_interval("coalescence", self.coalescence, 0.0, math.inf,
+                             "a finite number > 0")
+        if not (isinstance(self.resample, str) and self.resample in RESAMPLE_CHOICES):
+            raise _refuse("resample", self.resample, "one of " + ", ".join(
+                repr(c) for c in RESAMPLE_CHOICES))
+
+    def _check_band(self) -> None:
+        band = self.band_hz
+        if band is None:
+            return
+        allowed = "None (the data's span) or two finite numbers lo, hi with 0 <= lo < hi"
+        try:
+            lo, hi = band
+        except (TypeError, ValueError):
+            raise _refuse("band_hz", band, allowed) from None
+        if not (_is_real(lo) and _is_real(hi)):
+            raise _refuse("band_hz", band, allowed)
+        lo, hi = float(lo), float(hi)
+        if not (math.isfinite(lo) and math.isfinite(hi) and 0.0 <= lo < hi):
+            raise _refuse("band_hz", band, allowed)
+        object.__setattr__(self, "band_hz", (lo, hi))
+
+    @staticmethod
+    def _check_interval(name: str, value: Any, lo: float, hi: float, allowed: str,
+                        closed_lo: bool = False, closed_hi: bool = False) -> None:
+        ok = _is_real(value) and math.isfinite(float(value))
+        if ok:
+            v = float(value)
+            ok = (v >= lo if closed_lo else v > lo) and (v <= hi if closed_hi else v < hi)
+        if not ok:
+            raise _refuse(name, value, allowed)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain-JSON form (``jobs`` left out: it never changes the result)."""
+        d = dataclasses.asdict(self)
+        d.pop("jobs")
+        if d["band_hz"] is not None:
+            d["band_hz"] = [float(x) for x in d["band_hz"]]
+        return d

@@ -1,0 +1,78 @@
+"""Order selection with the misfit scan (core/order.py's scan and select_orders)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from automodal.core import bilinear, order, subspace
+from automodal.core import simulate as sim
+from automodal.errors import InputError
+
+
+def _exact(n_dof: int = 3, outputs=(0, 1, 2), n_lines: int = 400):
+    """Noise-free FRFs of a small chain, as the pipeline scales and weighs them."""
+    system = sim.damp(sim.chain(n_dof), "rayleigh", zeta=0.02)
+    freq = sim.frequency_lines(1.25 * sim.natural_frequencies_hz(system).max(), n_lines)
+    data, _ = sim.simulate_test(system, list(outputs), [n_dof - 1], freq, "displacement")
+    keep = data.frequency > 0
+    w = 2 * np.pi * data.frequency[keep]
+    T = bilinear.default_scale(w[0], w[-1])
+    H = data.frf[keep]
+    Hs = H / subspace.channel_scales(H)[None, :, None]
+    return bilinear.to_unit_circle(w, T), Hs, subspace.envelope_weights(Hs)
+
+
+def test_select_orders_finds_the_true_order_of_an_exact_system():
+    z, Hs, lw = _exact()
+    choice = order.select_orders(z, Hs, lw)
+    assert choice.n0 == 6  # three modes, two states each
+    assert choice.reference == order.excessive_order(6, choice.limit) == 26
+    assert choice.scanned[0] == 2 and np.all(np.diff(choice.scanned) > 0)
+    assert choice.misfit.shape == choice.scanned.shape
+    assert choice.limit == order.order_limit(*Hs.shape)
+
+
+def test_max_order_caps_the_scan_and_the_reference():
+    z, Hs, lw = _exact()
+    choice = order.select_orders(z, Hs, lw, max_order=9)
+    assert choice.limit == 8
+    assert choice.scanned[-1] <= 8 and choice.reference <= 8
+
+
+def test_too_few_lines_are_refused_with_the_number_needed():
+    z, Hs, lw = _exact(n_lines=400)
+    n = 2000
+    need = order.lines_needed(n, Hs.shape[1], Hs.shape[2])
+    with pytest.raises(InputError, match=f"too few for model order {n}: .* at least {need}"):
+        order.select_orders(z, Hs, lw, max_order=n, source="x.h5")
+    with pytest.raises(InputError, match="too few: the identification needs at least"):
+        order.select_orders(z[:3], Hs[:3], lw[:3])
+
+
+def test_order_limit_and_lines_needed_agree():
+    for ny, nu in ((1, 1), (3, 1), (4, 2)):
+        for n in (4, 10, 40):
+            need = order.lines_needed(n, ny, nu)
+            assert order.order_limit(need, ny, nu) >= n
+            assert order.order_limit(need - 1, ny, nu) < n
+
+
+def test_count_peaks_counts_resonances():
+    z, Hs, _ = _exact()
+    assert order.count_peaks(Hs) == 3
+    assert order.count_peaks(np.zeros((50, 2, 1))) == 0
+
+
+def test_scan_orders_steps():
+    o = order.scan_orders(200)
+    assert list(o[:3]) == [2, 4, 6] and 60 in o and 62 not in o and 64 in o
+    assert 124 not in o and 128 in o and o[-1] == 200
+    assert np.all(o % 2 == 0)
+
+
+def test_scan_stops_on_the_floor():
+    z, Hs, lw = _exact()
+    orders, misfit = order.scan(z, Hs, lw, 60, order.count_peaks(Hs))
+    assert orders[-1] < 60  # stopped once the floor was reached
+    assert order.order_at_floor(orders, misfit) == 6

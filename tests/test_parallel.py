@@ -1,0 +1,73 @@
+"""The parallel map: one result whatever the number of workers."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from automodal.core import bilinear, bootstrap, replicates, subspace
+from automodal.core import simulate as sim
+from automodal.core.parallel import PARALLEL_MIN_FLOPS, gather, thread_map, worker_count
+
+
+def test_worker_count_rule(monkeypatch):
+    monkeypatch.setattr("os.cpu_count", lambda: 8)
+    assert worker_count(None, 100, PARALLEL_MIN_FLOPS) == 8
+    assert worker_count(None, 100, PARALLEL_MIN_FLOPS / 2) == 1  # too little work
+    assert worker_count(None, 3) == 3  # never more workers than tasks
+    assert worker_count(2, 100, 0.0) == 2  # asked for: used whatever the work
+    assert worker_count(16, 5) == 5
+    for bad in (0, -1):
+        with pytest.raises(ValueError, match="None .* or an integer >= 1"):
+            worker_count(bad, 10)
+
+
+@pytest.mark.parametrize("n_jobs", [1, 2, 3])
+def test_thread_map_keeps_input_order(n_jobs):
+    with thread_map(n_jobs) as pmap:
+        out = list(pmap(lambda x: x * x, range(20)))
+    assert out == [x * x for x in range(20)]
+
+
+def test_gather_joins_in_chunk_order_and_reports_progress():
+    chunks = [range(0, 3), range(3, 5), range(5, 9)]
+    seen: list[int] = []
+    out = gather(([i for i in r] for r in chunks), chunks, seen.append)
+    assert out == list(range(9))
+    assert seen == [3, 2, 4]
+
+
+def test_thread_map_gives_the_same_floating_point_result_for_1_and_2_workers():
+    rng = np.random.default_rng(0)
+    mats = [rng.standard_normal((60, 60)) for _ in range(8)]
+
+    def work(a):
+        return np.linalg.eigvalsh(a @ a.T)
+
+    with thread_map(1) as pmap:
+        one = list(pmap(work, mats))
+    with thread_map(2) as pmap:
+        two = list(pmap(work, mats))
+    for a, b in zip(one, two):
+        np.testing.assert_array_equal(a, b)
+
+
+def test_replicates_are_identical_for_1_and_2_workers():
+    system = sim.damp(sim.chain(4), "rayleigh", zeta=0.02)
+    freq = sim.frequency_lines(1.25 * sim.natural_frequencies_hz(system).max(), 300)
+    data, _ = sim.simulate_test(system, [0, 2, 3], [3], freq, "displacement", noise=0.02, seed=1)
+    keep = data.frequency > 0
+    w = 2 * np.pi * data.frequency[keep]
+    T = bilinear.default_scale(w[0], w[-1])
+    z = bilinear.to_unit_circle(w, T)
+    H = data.frf[keep] / subspace.channel_scales(data.frf[keep])[None, :, None]
+    basis = subspace.row_basis(z, subspace.block_rows(16, 3))
+    weights = bootstrap.line_weights(H.shape[0], 12, np.random.default_rng(3))
+    seen: list[int] = []
+    one = replicates.run_replicates(basis, H, 16, T, weights, 1)
+    two = replicates.run_replicates(basis, H, 16, T, weights, 2, progress=seen.append)
+    assert sum(seen) == 12 and len(one) == len(two) == 12
+    for a, b in zip(one, two):
+        np.testing.assert_array_equal(a.poles, b.poles)
+        np.testing.assert_array_equal(a.shapes, b.shapes)
+        assert a.path == b.path
