@@ -23,6 +23,7 @@ from automodal import __version__
 from automodal.core import bootstrap, checks, clustering, order, physicalness, subspace
 from automodal.core.bilinear import default_scale, poles_d2c, to_unit_circle
 from automodal.core.correlation import moc_vectors
+from automodal.core.from_time import as_frfdata
 from automodal.core.modal import ModeSet, modes_of_discrete, mpc, normalise_shapes, unit_max_shapes
 from automodal.errors import InputError
 from automodal.frfdata import FRFData
@@ -489,6 +490,7 @@ def identify(
     -------
     Result
     """
+    data = as_frfdata(data)
     from threadpoolctl import threadpool_limits
 
     # One BLAS thread for the many small dense problems (measured: 0.75 s against 0.9 s
