@@ -336,11 +336,12 @@ def process_file(
 
 def _identify(path: str, settings: Settings) -> tuple[dict[str, Any], Any]:
     """Read and identify one file; its report dict and the pipeline's result."""
+    from automodal.core.from_time import as_frfdata
     from automodal.io.readers import read_any
     from automodal.io.report import report_dict
     from automodal.pipeline import identify
 
-    data = read_any(path)
+    data = as_frfdata(read_any(path))
     result = identify(data, settings)
     return report_dict(result, data, input_path=path), result
 

@@ -1,11 +1,21 @@
-"""The in-memory test object: one test of one structure as frequency response functions."""
+"""The in-memory test object: one test of one structure as frequency response functions.
+
+An :class:`FRFData` checks itself when it is made (and :meth:`FRFData.validate` checks it
+again on demand): the one place where the rules of ``spec/frf-file.md`` on the arrays are
+enforced, whatever the data came from (a reader of any format, the time-series analysis,
+Python code). Each broken rule has one message, raised as an
+:class:`~automodal.errors.InputError` naming ``source``.
+"""
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+
+from automodal.errors import InputError
 
 QUANTITIES = ("displacement", "velocity", "acceleration")
 """Response quantities an FRF can be given in: receptance, mobility, accelerance."""
@@ -20,25 +30,31 @@ class FRFData:
     frequency : ndarray, shape (n_freq,)
         Frequency lines in Hz, strictly increasing, finite, >= 0.
     frf : ndarray, shape (n_freq, n_outputs, n_inputs), complex128
-        ``frf[k, i, j]`` is response ``i`` per unit force ``j`` at line ``k``.
+        ``frf[k, i, j]`` is response ``i`` per unit force ``j`` at line ``k``; finite.
     quantity : str
         One of :data:`QUANTITIES`.
     coherence : ndarray or None
         Ordinary coherence, same shape as ``frf``, in [0, 1].
     records : ndarray or None, shape (n_records, n_freq, n_outputs, n_inputs)
-        Repeated measurements (hits, averages) when kept separately.
+        Repeated measurements (hits, averages) when kept separately; finite.
     output_names, input_names : list of str
-        Channel names (defaults ``y1..``, ``u1..``).
+        Channel names (defaults ``y1..``, ``u1..``), one per channel.
     output_nodes, input_nodes : ndarray of int or None
-        Node numbers in a test geometry.
+        Node numbers in a test geometry, one per channel.
     output_directions, input_directions : list of str or None
-        Directions such as ``"+X"``.
+        Directions such as ``"+X"``, one per channel.
     output_xyz : ndarray, shape (n_outputs, 3), or None
         Sensor coordinates.
     attributes : dict
         Free attributes of the file (structure name, date, ...), copied into reports.
     source : str or None
         Where the data came from (a path), for messages and reports.
+
+    Raises
+    ------
+    InputError
+        When made with data that break a rule above (see :meth:`validate`); the message
+        is one line and names ``source``.
     """
 
     frequency: np.ndarray
@@ -57,12 +73,36 @@ class FRFData:
     source: str | None = None
 
     def __post_init__(self) -> None:
-        self.frequency = np.asarray(self.frequency, dtype=float)
-        self.frf = np.asarray(self.frf, dtype=complex)
+        self.frequency = _numbers(self.frequency, float, "frequency axis", self.source)
+        self.frf = _numbers(self.frf, complex, "FRFs", self.source)
+        if self.coherence is not None:
+            self.coherence = _numbers(self.coherence, float, "coherence", self.source)
+        if self.records is not None:
+            self.records = _numbers(self.records, complex, "repeated records", self.source)
+        _raise_first(_SHAPE_RULES, self)
         if not self.output_names:
             self.output_names = [f"y{i + 1}" for i in range(self.n_outputs)]
         if not self.input_names:
             self.input_names = [f"u{j + 1}" for j in range(self.n_inputs)]
+        _raise_first(_VALUE_RULES, self)
+
+    def validate(self) -> None:
+        """Check every rule again (the arrays may have been changed in place).
+
+        A few vectorised passes over the arrays; made objects are valid, so a caller needs
+        this only for data it did not make itself.
+
+        Raises
+        ------
+        InputError
+            One line naming ``source``, for the first broken rule: the frequency axis not
+            1-D or empty, with non-finite, negative or not strictly increasing lines; the
+            FRFs not 3-D with one line per frequency, empty, or not finite; coherence or
+            records of another shape than the FRFs (records with one more, first, axis),
+            coherence outside [0, 1], records not finite; names, nodes, directions or
+            coordinates not one per channel; an unknown quantity.
+        """
+        _raise_first(_SHAPE_RULES + _VALUE_RULES, self)
 
     @property
     def n_freq(self) -> int:
@@ -83,3 +123,135 @@ class FRFData:
     def omega(self) -> np.ndarray:
         """Angular frequencies in rad/s."""
         return 2.0 * np.pi * self.frequency
+
+
+def quantity_problem(quantity: Any) -> str | None:
+    """Why ``quantity`` is not a response quantity, or None when it is one of
+    :data:`QUANTITIES` (the one message for an unknown quantity, readers included).
+
+    Parameters
+    ----------
+    quantity : Any
+
+    Returns
+    -------
+    str or None
+    """
+    if quantity in QUANTITIES:
+        return None
+    return f"unknown quantity {quantity!r} (expected one of {', '.join(QUANTITIES)})"
+
+
+# ---------------------------------------------------------------------------------- rules
+
+Rule = Callable[[FRFData], "str | None"]
+
+
+def _raise_first(rules: Sequence[Rule], data: FRFData) -> None:
+    """Raise the first problem that one of ``rules`` finds in ``data``."""
+    for rule in rules:
+        problem = rule(data)
+        if problem:
+            raise InputError(problem, data.source)
+
+
+def _numbers(values: Any, dtype: type, what: str, source: str | None) -> np.ndarray:
+    """``values`` as an array of ``dtype`` (no copy when it already is one)."""
+    try:
+        return np.asarray(values, dtype=dtype)
+    except (TypeError, ValueError):
+        raise InputError(f"the {what} must hold numbers", source) from None
+
+
+def _frequency_shape(d: FRFData) -> str | None:
+    f = d.frequency
+    if f.ndim != 1 or f.size == 0:
+        return f"the frequency axis must be 1-D and not empty, not of shape {f.shape}"
+    return None
+
+
+def _frf_shape(d: FRFData) -> str | None:
+    H = d.frf
+    if H.ndim != 3 or H.shape[0] != d.frequency.size:
+        return (f"the FRF array has shape {H.shape}; expected ({d.frequency.size}, n_outputs, "
+                "n_inputs) (one line per frequency)")
+    if H.size == 0:
+        return f"the FRF array is empty (shape {H.shape})"
+    return None
+
+
+def _coherence_shape(d: FRFData) -> str | None:
+    if d.coherence is not None and d.coherence.shape != d.frf.shape:
+        return (f"the coherence has shape {d.coherence.shape}, expected {d.frf.shape} "
+                "(the shape of the FRFs)")
+    return None
+
+
+def _records_shape(d: FRFData) -> str | None:
+    R = d.records
+    if R is not None and (R.ndim != 4 or R.shape[0] == 0 or R.shape[1:] != d.frf.shape):
+        return (f"the repeated records have shape {R.shape}, expected (n_records,) + "
+                f"{d.frf.shape} (at least one record of the FRFs' shape)")
+    return None
+
+
+def _frequency_values(d: FRFData) -> str | None:
+    f = d.frequency
+    n_bad = int(np.count_nonzero(~np.isfinite(f)))
+    if n_bad:
+        return f"the frequency axis has {n_bad} non-finite value(s) (NaN or inf)"
+    if f[0] < 0:
+        return f"the frequency axis has negative values (first line {f[0]:g} Hz)"
+    bad = np.flatnonzero(np.diff(f) <= 0)
+    if bad.size:
+        k = int(bad[0]) + 1
+        return (f"the frequencies are not strictly increasing (line {k}: {f[k]:g} Hz after "
+                f"{f[k - 1]:g} Hz)")
+    return None
+
+
+def _finite(values: np.ndarray | None, what: str) -> str | None:
+    """The problem of non-finite ``values`` (NaN or inf in a real or imaginary part)."""
+    if values is None:
+        return None
+    n_bad = values.size - int(np.count_nonzero(np.isfinite(values)))
+    return f"the {what} have {n_bad} non-finite value(s) (NaN or inf)" if n_bad else None
+
+
+def _coherence_values(d: FRFData) -> str | None:
+    c = d.coherence
+    if c is not None and not np.all((c >= 0.0) & (c <= 1.0)):
+        return "the coherence has values outside [0, 1] (or not finite)"
+    return None
+
+
+def _per_channel(d: FRFData) -> str | None:
+    """Names, nodes, directions and coordinates: one per channel."""
+    for side, n in (("output", d.n_outputs), ("input", d.n_inputs)):
+        for what in ("names", "nodes", "directions"):
+            values = getattr(d, f"{side}_{what}")
+            if values is None:
+                continue
+            shape = np.shape(values)
+            if shape != (n,):
+                got = shape[0] if len(shape) == 1 else f"an array of shape {shape} of"
+                return f"{got} {side} {what} for {n} {side}(s): one per channel expected"
+    if d.output_xyz is not None and np.shape(d.output_xyz) != (d.n_outputs, 3):
+        return (f"the output coordinates have shape {np.shape(d.output_xyz)}, expected "
+                f"({d.n_outputs}, 3)")
+    return None
+
+
+_SHAPE_RULES: tuple[Rule, ...] = (_frequency_shape, _frf_shape, _coherence_shape,
+                                  _records_shape)
+"""Rules needed before the channel counts mean anything."""
+
+_VALUE_RULES: tuple[Rule, ...] = (
+    _frequency_values,
+    lambda d: _finite(d.frf, "FRFs"),
+    lambda d: _finite(d.records, "repeated records"),
+    _coherence_values,
+    _per_channel,
+    lambda d: quantity_problem(d.quantity),
+)
+"""Rules on the values, the channels' metadata and the quantity."""

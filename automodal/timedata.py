@@ -1,9 +1,11 @@
 """The in-memory time-series test: raw responses (and forces) sampled at one rate.
 
-A :class:`TimeSeries` is what the ``/time`` group of the automodal FRF file holds. It is
-turned into an :class:`~automodal.frfdata.FRFData` by
-:func:`automodal.core.from_time.frfdata_from_time` (H1 estimates when forces were measured,
-half spectra for output-only data), which the pipeline then identifies.
+A :class:`TimeSeries` is what the ``/time`` group of the automodal FRF file holds. The
+pipeline's input stage (:func:`automodal.core.from_time.as_frfdata`) turns it into an
+:class:`~automodal.frfdata.FRFData` (H1 estimates when forces were measured, half spectra
+for output-only data), which the pipeline then identifies. A :class:`TimeSeries` checks
+itself when it is made: each broken rule is an :class:`~automodal.errors.InputError` of one
+line naming ``source``.
 """
 
 from __future__ import annotations
@@ -12,6 +14,8 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+
+from automodal.errors import InputError
 
 
 @dataclass
@@ -36,10 +40,10 @@ class TimeSeries:
 
     Raises
     ------
-    ValueError
-        If the arrays are not 1-D or 2-D, have no sample or channel, differ in their number
-        of samples, if a name list has the wrong length, or if ``sample_rate`` is not a
-        positive finite number.
+    InputError
+        If the arrays are not numbers, not 1-D or 2-D, have no sample or channel, hold
+        non-finite values or differ in their number of samples, if a name list has the
+        wrong length, or if ``sample_rate`` is not a positive finite number.
     """
 
     outputs: np.ndarray
@@ -51,20 +55,23 @@ class TimeSeries:
     source: str | None = None
 
     def __post_init__(self) -> None:
-        self.outputs = _as_channels(self.outputs, "outputs")
+        self.outputs = _as_channels(self.outputs, "outputs", self.source)
         if self.inputs is not None:
-            self.inputs = _as_channels(self.inputs, "inputs")
+            self.inputs = _as_channels(self.inputs, "inputs", self.source)
             if self.inputs.shape[0] != self.outputs.shape[0]:
-                raise ValueError(
-                    f"inputs have {self.inputs.shape[0]} samples but outputs "
-                    f"{self.outputs.shape[0]}"
-                )
-        rate = float(self.sample_rate)
+                raise InputError(f"the inputs have {self.inputs.shape[0]} samples but the "
+                                 f"outputs {self.outputs.shape[0]}", self.source)
+        try:
+            rate = float(self.sample_rate)
+        except (TypeError, ValueError):
+            rate = float("nan")
         if not (np.isfinite(rate) and rate > 0):
-            raise ValueError(f"sample_rate must be a positive finite number, got {rate!r}")
+            raise InputError(f"the sample_rate must be a finite number > 0 (Hz), not "
+                             f"{self.sample_rate!r}", self.source)
         self.sample_rate = rate
-        self.output_names = _names(self.output_names, self.n_outputs, "y", "output")
-        self.input_names = _names(self.input_names, self.n_inputs, "u", "input")
+        self.output_names = _names(self.output_names, self.n_outputs, "y", "output",
+                                   self.source)
+        self.input_names = _names(self.input_names, self.n_inputs, "u", "input", self.source)
 
     @property
     def n_samples(self) -> int:
@@ -87,23 +94,31 @@ class TimeSeries:
         return self.n_samples / self.sample_rate
 
 
-def _as_channels(values: Any, label: str) -> np.ndarray:
-    """``values`` as a float array of shape (n_samples, n_channels)."""
-    arr = np.asarray(values, dtype=float)
+def _as_channels(values: Any, label: str, source: str | None) -> np.ndarray:
+    """``values`` as a finite float array of shape (n_samples, n_channels)."""
+    try:
+        arr = np.asarray(values, dtype=float)
+    except (TypeError, ValueError):
+        raise InputError(f"the {label} must hold real numbers", source) from None
     if arr.ndim == 1:
         arr = arr[:, None]
     if arr.ndim != 2:
-        raise ValueError(f"{label} must be (n_samples, n_channels), got shape {arr.shape}")
+        raise InputError(f"the {label} must be (n_samples, n_channels), not of shape "
+                         f"{arr.shape}", source)
     if arr.shape[0] == 0 or arr.shape[1] == 0:
-        raise ValueError(f"{label} have no sample or no channel (shape {arr.shape})")
+        raise InputError(f"the {label} have no sample or no channel (shape {arr.shape})",
+                         source)
+    n_bad = arr.size - int(np.count_nonzero(np.isfinite(arr)))
+    if n_bad:
+        raise InputError(f"the {label} have {n_bad} non-finite value(s) (NaN or inf)", source)
     return arr
 
 
-def _names(names: list[str], n: int, prefix: str, side: str) -> list[str]:
+def _names(names: list[str], n: int, prefix: str, side: str, source: str | None) -> list[str]:
     """The given channel names (checked to number ``n``), or ``prefix1..prefixn``."""
     if not names:
         return [f"{prefix}{i + 1}" for i in range(n)]
     names = [str(s) for s in names]
     if len(names) != n:
-        raise ValueError(f"{len(names)} {side} names for {n} {side} channels")
+        raise InputError(f"{len(names)} {side} names for {n} {side} channels", source)
     return names

@@ -31,7 +31,8 @@ from automodal.core import simulate as sim
 from automodal.errors import InputError
 from automodal.frfdata import FRFData
 from automodal.io.frf_file import read_frf, write_frf
-from automodal.io.readers import MAX_VALUES, read_any
+from automodal.io.limits import MAX_VALUES
+from automodal.io.readers import read_any
 from automodal.pipeline import identify
 from automodal.result import Result
 from automodal.settings import Settings

@@ -38,6 +38,7 @@ import pyuff
 from hypothesis import HealthCheck, event, given, note, settings
 from hypothesis import strategies as st
 
+from automodal.core.from_time import as_frfdata
 from automodal.errors import InputError
 from automodal.frfdata import QUANTITIES, FRFData
 from automodal.io.readers import read_any
@@ -746,7 +747,8 @@ def folder() -> Iterator[Path]:
 
 
 def read_checked(path: Path) -> FRFData | InputError:
-    """Read ``path`` with :func:`read_any` and check the outcome.
+    """Read ``path`` with :func:`read_any` (time series made FRFs by :func:`as_frfdata`, as
+    the command line does) and check the outcome.
 
     The reader must return a valid :class:`FRFData` or raise :class:`InputError` with one
     line that names the file; any other exception propagates (and fails the test). The
@@ -759,7 +761,7 @@ def read_checked(path: Path) -> FRFData | InputError:
     """
     before = _snapshot(path.parent)
     try:
-        outcome: FRFData | InputError = read_any(path)
+        outcome: FRFData | InputError = as_frfdata(read_any(path))
     except InputError as exc:
         message = str(exc)
         assert "\n" not in message and "\r" not in message, message

@@ -510,6 +510,26 @@ def test_convert_csv_quiet(tmp_path):
     assert_same_data(read_frf(out), read_csv(csv))
 
 
+def test_convert_time_series_writes_their_frfs(tmp_path):
+    import json
+
+    from automodal.core.from_time import as_frfdata
+    from automodal.io.time_file import read_time, write_time
+    from automodal.timedata import TimeSeries
+
+    source = tmp_path / "time.h5"
+    outputs = np.random.default_rng(4).standard_normal((2048, 2))
+    write_time(source, TimeSeries(outputs, None, 256.0, attributes={"quantity": "velocity"}))
+    out = tmp_path / "frf.h5"
+    result = run_convert(str(source), str(out), "--quiet")
+    assert result.returncode == 0, result.stderr
+    read, made = read_frf(out), as_frfdata(read_time(source))
+    np.testing.assert_array_equal(read.frf, made.frf)
+    assert read.quantity == "velocity" and read.attributes["analysis"] == "operational"
+    assert read.attributes["window_decay_per_s"] == made.attributes["window_decay_per_s"]
+    assert json.loads(read.attributes["time_analysis"]) == made.attributes["time_analysis"]
+
+
 def test_convert_summary_says_assumed_quantity(tmp_path):
     csv = write_table(tmp_path / "t.csv", two_frfs())
     result = run_convert(str(csv), str(tmp_path / "t.h5"))

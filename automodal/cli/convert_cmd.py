@@ -69,10 +69,15 @@ def convert(input_path: str, output: Path, quiet: bool, debug: bool) -> None:
             raise InputError("the folder to write into does not exist", output)
         if Path(input_path).is_dir():
             raise InputError("is a folder, not an input file", input_path)
+        from automodal.core.from_time import as_frfdata
         from automodal.io.frf_file import write_frf
         from automodal.io.readers import read_any
 
-        data = read_any(input_path)
+        data = as_frfdata(read_any(input_path))
+        if isinstance(data.attributes.get("time_analysis"), dict):  # HDF5 has no dict type
+            import json
+
+            data.attributes["time_analysis"] = json.dumps(data.attributes["time_analysis"])
         write_frf(output, data)
         if not quiet:
             click.echo(summary(output, data))

@@ -83,9 +83,10 @@ def read_input(path: str):
     p = Path(path)
     if p.is_dir():
         raise InputError("is a folder, not an input file", path)
+    from automodal.core.from_time import as_frfdata
     from automodal.io.readers import read_any
 
-    return read_any(path)
+    return as_frfdata(read_any(path))
 
 
 def read_baseline(path: str) -> dict:

@@ -16,6 +16,10 @@ Three routes, chosen from the data:
 Only lines ``0 < f <= usable_fraction * fs / 2`` are kept: the 0 Hz line (means removed)
 is dropped, and by default so is the top of the band where an acquisition system's
 anti-alias filter acts (analysers show ``fs / 2.56`` for that reason).
+
+:func:`as_frfdata` is the pipeline's input stage: what a reader gave (FRFs, or time series)
+as FRFs. :mod:`automodal.core.spectra` (and scipy.signal with it) is imported only when
+time series are analysed, so that importing this module stays cheap.
 """
 
 from __future__ import annotations
@@ -24,11 +28,11 @@ from typing import Any
 
 import numpy as np
 
-from automodal.core import spectra
+from automodal.errors import InputError
 from automodal.frfdata import QUANTITIES, FRFData
 from automodal.timedata import TimeSeries
 
-__all__ = ["EXCITATIONS", "USABLE_FRACTION", "frfdata_from_time"]
+__all__ = ["EXCITATIONS", "USABLE_FRACTION", "as_frfdata", "frfdata_from_time"]
 
 EXCITATIONS = ("auto", "random", "impact", "operational")
 """Routes of :func:`frfdata_from_time`; ``"auto"`` picks one from the data."""
@@ -40,6 +44,48 @@ DEFAULT_QUANTITY = "displacement"
 """Quantity assumed when the data do not say (the FRF file's default)."""
 
 
+def as_frfdata(data: FRFData | TimeSeries, **options: Any) -> FRFData:
+    """The test as FRFs: ``data`` itself, or the FRFs made from its time series.
+
+    Parameters
+    ----------
+    data : FRFData or TimeSeries
+        What a reader gave (:func:`automodal.io.readers.read_any`) or Python code made.
+    **options
+        Keyword arguments of :func:`frfdata_from_time` (time series only).
+
+    Returns
+    -------
+    FRFData
+        ``data`` unchanged when it is one. For a :class:`TimeSeries`, the FRFs of
+        :func:`frfdata_from_time` with its choices (segment length, references, windows)
+        in ``attributes["time_analysis"]``, so that the report shows them, the decay rate
+        of its window (1/s, 0 without one) in ``attributes["window_decay_per_s"]``, so that
+        the pipeline takes it out of the damping, and the series' ``source``.
+
+    Raises
+    ------
+    InputError
+        When the time series cannot be analysed (a dead channel, a record too short, an
+        unknown quantity, ...): one line naming the series' source.
+    TypeError
+        If ``data`` is neither an :class:`FRFData` nor a :class:`TimeSeries`.
+    """
+    if isinstance(data, FRFData):
+        return data
+    if not isinstance(data, TimeSeries):
+        raise TypeError(f"expected FRFData or TimeSeries, not {type(data).__name__}")
+    try:
+        frf, info = frfdata_from_time(data, **options)
+    except ValueError as exc:
+        raise InputError(str(exc), data.source) from None
+    decay = info.get("lag_window_decay_per_s") or info.get("exponential_decay_per_s") or 0.0
+    frf.attributes["time_analysis"] = info
+    frf.attributes["window_decay_per_s"] = float(decay)
+    frf.source = data.source
+    return frf
+
+
 def frfdata_from_time(
     ts: TimeSeries,
     *,
@@ -47,7 +93,7 @@ def frfdata_from_time(
     nperseg: int | None = None,
     references: list[int] | None = None,
     max_references: int = 3,
-    lag_tail: float = spectra.LAG_WINDOW_TAIL,
+    lag_tail: float | None = None,
     usable_fraction: float = USABLE_FRACTION,
 ) -> tuple[FRFData, dict[str, Any]]:
     """Turn a time-series test into FRFs (H1 or half spectra) for the pipeline.
@@ -69,8 +115,9 @@ def frfdata_from_time(
         Reference outputs of the operational route (default automatic).
     max_references : int
         Most automatic references.
-    lag_tail : float
-        Value of the exponential lag window at the max lag (operational route).
+    lag_tail : float, optional
+        Value of the exponential lag window at the max lag (operational route; default
+        :data:`automodal.core.spectra.LAG_WINDOW_TAIL`).
     usable_fraction : float
         Fraction of the Nyquist band kept, in (0, 1].
 
@@ -101,6 +148,10 @@ def frfdata_from_time(
         On an unknown ``excitation`` or ``quantity``, impact or random analysis without
         inputs, a constant (dead) channel, or a record too short for the analysis.
     """
+    from automodal.core import spectra
+
+    if lag_tail is None:
+        lag_tail = spectra.LAG_WINDOW_TAIL
     if excitation not in EXCITATIONS:
         raise ValueError(f"excitation must be one of {EXCITATIONS}, got {excitation!r}")
     if not 0.0 < usable_fraction <= 1.0:
@@ -171,6 +222,8 @@ def _random(
     ts: TimeSeries, nperseg: int | None, info: dict[str, Any]
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Welch H1 (Hann, 50 % overlap)."""
+    from automodal.core import spectra
+
     fs = ts.sample_rate
     L = int(nperseg or spectra.choose_segment(ts.n_samples, fs))
     n_seg = spectra.segment_count(ts.n_samples, L, spectra.DEFAULT_OVERLAP)
@@ -195,6 +248,8 @@ def _impact(
     ts: TimeSeries, hits: tuple[np.ndarray, int] | None, info: dict[str, Any]
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """H1 over hammer hits: rectangular records, force window, exponential if needed."""
+    from automodal.core import spectra
+
     fs = ts.sample_rate
     if hits is None:
         hits = spectra.detect_hits(ts.inputs, fs)
@@ -235,6 +290,8 @@ def _operational(
     info: dict[str, Any],
 ) -> tuple[np.ndarray, np.ndarray, None, None, list[str]]:
     """Half spectra of all outputs against (automatic) references."""
+    from automodal.core import spectra
+
     fs = ts.sample_rate
     L = int(nperseg or spectra.choose_segment(ts.n_samples, fs))
     refs = (

@@ -1,19 +1,23 @@
-"""Reading any supported input file into an :class:`~automodal.frfdata.FRFData`.
+"""Reading any supported input file: the suffix dispatch, in a child process with a time limit.
 
 :func:`read_any` picks the reader by the file's suffix:
 
 ========================  =====================================================
 suffix                    reader
 ========================  =====================================================
-``.h5``, ``.hdf5``        :func:`automodal.io.frf_file.read_frf` (the FRF file)
+``.h5``, ``.hdf5``        :func:`read_hdf5`: :func:`automodal.io.frf_file.read_frf`
+                          (FRFs) or :func:`automodal.io.time_file.read_time`
+                          (a file with time series only)
 ``.uff``, ``.unv``        :func:`automodal.io.uff.read_uff` (dataset 58)
 ``.csv``, ``.txt``        :func:`automodal.io.tabular.read_csv`
 ``.npz``                  :func:`automodal.io.tabular.read_npz`
 ========================  =====================================================
 
-A file with another suffix is read as an FRF file when it carries the HDF5 signature and is
+A file with another suffix is read as an HDF5 file when it carries the HDF5 signature and is
 refused otherwise. The readers are imported only when used, so that pyuff is loaded only for
-UFF files.
+UFF files and h5py only for HDF5 files. The readers only read: a time-series file gives a
+:class:`~automodal.timedata.TimeSeries`, which the pipeline's input stage
+(:func:`automodal.core.from_time.as_frfdata`) turns into FRFs.
 
 On Linux the reading runs in a forked child process with a time limit
 (:data:`READ_TIMEOUT_S`): a damaged HDF5 file can make the HDF5 library loop for ever (found
@@ -22,8 +26,7 @@ interpreter lock held) or crash, and neither may hang or kill a batch. Both end 
 :class:`InputError` like any refused file. Elsewhere, and in daemonic processes (which may
 not start children), the reading runs in the calling process, without that protection.
 
-The module also holds :func:`check_frf_arrays`, the checks that every reader of a foreign
-format applies to the arrays it has assembled (the same rules as ``spec/frf-file.md``).
+This module imports the format modules (when used); they never import it.
 """
 
 from __future__ import annotations
@@ -33,40 +36,21 @@ import multiprocessing
 import os
 import sys
 from pathlib import Path
-from typing import Any
-
-import numpy as np
+from typing import TYPE_CHECKING, Any
 
 from automodal.errors import InputError
-from automodal.frfdata import FRFData
+from automodal.io.limits import check_is_file
 
-__all__ = [
-    "MAX_TEXT_BYTES",
-    "MAX_VALUES",
-    "READERS",
-    "READ_TIMEOUT_S",
-    "check_frf_arrays",
-    "check_is_file",
-    "check_size",
-    "check_text_size",
-    "read_any",
-    "size_problem",
-]
+if TYPE_CHECKING:  # annotations only: the readers import what they return
+    from automodal.frfdata import FRFData
+    from automodal.timedata import TimeSeries
 
-MAX_VALUES = 2**26
-"""Most numbers a reader loads from one file's arrays (67 108 864: 1 GiB as complex128,
-e.g. 10^6 lines of 64 FRFs). A file that declares more is refused before anything is read,
-so that a hostile or mistaken file (a huge dataset that was never written, a zip bomb)
-cannot exhaust the memory."""
+__all__ = ["READERS", "READ_TIMEOUT_S", "read_any", "read_hdf5"]
 
 READ_TIMEOUT_S = 120.0
 """Longest time one file may take to read, in seconds (the environment variable
 ``AUTOMODAL_READ_TIMEOUT_S`` overrides it; ``0`` reads in this process, without a limit).
 A 2^26-value FRF file (1 GiB) reads in a few seconds."""
-
-MAX_TEXT_BYTES = 2**29
-"""Largest text file (CSV, UFF) a reader parses: 512 MiB. Parsing text costs several times
-the file's size in memory, so a larger text file is refused before it is read."""
 
 READERS: dict[str, tuple[str, str]] = {
     ".h5": ("automodal.io.readers", "read_hdf5"),
@@ -80,8 +64,9 @@ READERS: dict[str, tuple[str, str]] = {
 """Suffix (lower case) -> (module, function) of the reader used for it."""
 
 
-def read_any(path: str | os.PathLike[str]) -> FRFData:
-    """Read an FRF file, a UFF/UNV file, a CSV/text table or an NPZ archive.
+def read_any(path: str | os.PathLike[str]) -> FRFData | TimeSeries:
+    """Read an FRF file (or its time series), a UFF/UNV file, a CSV/text table or an NPZ
+    archive.
 
     Parameters
     ----------
@@ -92,8 +77,9 @@ def read_any(path: str | os.PathLike[str]) -> FRFData:
 
     Returns
     -------
-    FRFData
-        What the chosen reader returns; ``source`` is ``str(path)``.
+    FRFData or TimeSeries
+        What the chosen reader returns (a :class:`TimeSeries` for an HDF5 file with time
+        series and no FRFs); ``source`` is ``str(path)``.
 
     Raises
     ------
@@ -111,13 +97,15 @@ def read_any(path: str | os.PathLike[str]) -> FRFData:
     return _read_in_child(path, timeout)
 
 
-def _read_by_suffix(path: str | os.PathLike[str]) -> FRFData:
+def _read_by_suffix(path: str | os.PathLike[str]) -> FRFData | TimeSeries:
     """Pick the reader by the suffix (or the HDF5 signature) and read."""
     source = str(path)
     p = Path(path)
     target = READERS.get(p.suffix.lower())
     if target is None:
-        if not _has_hdf5_signature(p):
+        from automodal.io.hdf5 import has_hdf5_signature
+
+        if not has_hdf5_signature(p):
             known = ", ".join(sorted(READERS))
             raise InputError(f"unknown input type (expected a suffix among {known}, "
                              "or an HDF5 FRF file)", source)
@@ -136,7 +124,7 @@ def _read_timeout() -> float:
         return READ_TIMEOUT_S
 
 
-def _read_in_child(path: str | os.PathLike[str], timeout: float) -> FRFData:
+def _read_in_child(path: str | os.PathLike[str], timeout: float) -> FRFData | TimeSeries:
     """:func:`_read_by_suffix` in a forked child that must answer within ``timeout``.
 
     The child sends back the data, or the refusal, or the unexpected exception, which are
@@ -174,7 +162,8 @@ def _read_in_child(path: str | os.PathLike[str], timeout: float) -> FRFData:
 
 
 def _child_reads(path: str | os.PathLike[str], send: Any) -> None:
-    """In the child: read, and send ``("data", FRFData)``, ``("refused", problem, path)``
+    """In the child: read, and send ``("data", FRFData or TimeSeries)``, ``("refused",
+    problem, path)``
     or ``("error", exception)`` back."""
     answer: tuple[Any, ...]
     try:
@@ -192,33 +181,31 @@ def _child_reads(path: str | os.PathLike[str], send: Any) -> None:
         send.close()
 
 
-def read_hdf5(path: str | os.PathLike[str]) -> FRFData:
-    """Read an automodal HDF5 test: FRFs from ``/frf``, or FRFs made from ``/time``.
+def read_hdf5(path: str | os.PathLike[str]) -> FRFData | TimeSeries:
+    """Read an automodal HDF5 test: the FRFs of ``/frf``, or the time series of ``/time``
+    when the file has no ``/frf``.
 
-    A file with time series and no FRFs is turned into FRFs here
-    (:func:`automodal.core.from_time.frfdata_from_time`: H1 with forces, half spectra
-    against automatically chosen references without); the choices made (segment length,
-    references, windows) are kept in ``attributes["time_analysis"]`` so the report shows
-    them, and a window's decay rate in ``attributes["window_decay_per_s"]`` so that the
-    pipeline can take it out of the damping.
+    Parameters
+    ----------
+    path : str or path-like
+
+    Returns
+    -------
+    FRFData or TimeSeries
+        :func:`automodal.io.frf_file.read_frf` or :func:`automodal.io.time_file.read_time`.
+
+    Raises
+    ------
+    InputError
+        What the chosen reader raises.
     """
-    if not _time_only(path):
-        from automodal.io.frf_file import read_frf
+    if _time_only(path):
+        from automodal.io.time_file import read_time
 
-        return read_frf(path)
-    from automodal.core.from_time import frfdata_from_time
-    from automodal.io.time_file import read_time
+        return read_time(path)
+    from automodal.io.frf_file import read_frf
 
-    ts = read_time(path)
-    try:
-        data, info = frfdata_from_time(ts)
-    except ValueError as exc:
-        raise InputError(str(exc), str(path)) from None
-    decay = float(info.get("lag_window_decay_per_s") or info.get("exponential_decay_per_s") or 0.0)
-    data.attributes["time_analysis"] = info
-    data.attributes["window_decay_per_s"] = decay
-    data.source = str(path)
-    return data
+    return read_frf(path)
 
 
 def _time_only(path: str | os.PathLike[str]) -> bool:
@@ -231,162 +218,3 @@ def _time_only(path: str | os.PathLike[str]) -> bool:
             return "frf" not in f and isinstance(f.get("time"), h5py.Group)
     except Exception:  # noqa: BLE001 - the FRF reader reports what is wrong
         return False
-
-
-def check_is_file(path: Path, source: str) -> None:
-    """Refuse a missing path or a folder.
-
-    Parameters
-    ----------
-    path : Path
-        The input.
-    source : str
-        How to name it in messages.
-
-    Raises
-    ------
-    InputError
-        ``"no such file"`` or ``"is a folder, not an input file"``.
-    """
-    if not path.exists():
-        raise InputError("no such file", source)
-    if path.is_dir():
-        raise InputError("is a folder, not an input file", source)
-
-
-def check_text_size(path: Path, source: str) -> None:
-    """Refuse a text file larger than :data:`MAX_TEXT_BYTES`, before it is read.
-
-    Parameters
-    ----------
-    path : Path
-        The file (it exists).
-    source : str
-        How to name it in messages.
-
-    Raises
-    ------
-    InputError
-        If the file is larger than :data:`MAX_TEXT_BYTES`.
-    """
-    size = path.stat().st_size
-    if size > MAX_TEXT_BYTES:
-        raise InputError(f"the file has {size} bytes, more than the {MAX_TEXT_BYTES} a text "
-                         "reader parses (too large to read safely)", source)
-
-
-def size_problem(n_values: int, what: str) -> str | None:
-    """Why an array (or a file's arrays) of ``n_values`` numbers is too large to read, or
-    None when it is not (at most :data:`MAX_VALUES`).
-
-    Parameters
-    ----------
-    n_values : int
-        How many numbers would be read.
-    what : str
-        What holds them, for the message (``"/frf (shape (...))"``).
-
-    Returns
-    -------
-    str or None
-    """
-    if n_values <= MAX_VALUES:
-        return None
-    return (f"{what} holds {n_values} values, more than the {MAX_VALUES} a reader loads "
-            "(too large to read safely)")
-
-
-def check_size(n_values: int, what: str, source: str) -> None:
-    """Refuse an array (or a file's arrays) of more than :data:`MAX_VALUES` numbers.
-
-    Parameters
-    ----------
-    n_values : int
-        How many numbers would be read.
-    what : str
-        What holds them, for the message.
-    source : str
-        The file, for the message.
-
-    Raises
-    ------
-    InputError
-        If ``n_values`` exceeds :data:`MAX_VALUES`.
-    """
-    problem = size_problem(n_values, what)
-    if problem:
-        raise InputError(problem, source)
-
-
-def _has_hdf5_signature(path: Path) -> bool:
-    """Whether ``path`` is an HDF5 file, by its signature (False when unreadable)."""
-    import h5py
-
-    try:
-        return bool(h5py.is_hdf5(path))
-    except (OSError, ValueError):
-        return False
-
-
-def check_frf_arrays(
-    frequency: np.ndarray, frf: np.ndarray, source: str
-) -> tuple[np.ndarray, np.ndarray]:
-    """Check the arrays a reader has assembled against the rules of the FRF file.
-
-    Parameters
-    ----------
-    frequency : array_like, shape (n_freq,)
-        Frequency lines in Hz.
-    frf : array_like, shape (n_freq, n_outputs, n_inputs)
-        The FRFs; must already be complex.
-    source : str
-        The file they come from, for messages.
-
-    Returns
-    -------
-    frequency : ndarray of float64
-    frf : ndarray of complex128
-        The same arrays, converted.
-
-    Raises
-    ------
-    InputError
-        If ``frequency`` is not 1-D, has no line, is not finite, has a negative line or is
-        not strictly increasing; if ``frf`` is not complex, not 3-D with one line per
-        frequency, has a non-finite value, or has no imaginary part anywhere (real data
-        dressed as complex).
-    """
-    freq = np.asarray(frequency)
-    values = np.asarray(frf)
-    if freq.ndim != 1 or freq.size == 0:
-        raise InputError(f"the frequency axis must be 1-D and not empty, not of shape "
-                         f"{freq.shape}", source)
-    freq = freq.astype(np.float64)
-    if not np.all(np.isfinite(freq)):
-        n_bad = int(np.count_nonzero(~np.isfinite(freq)))
-        raise InputError(f"the frequency axis has {n_bad} non-finite value(s) (NaN or inf)",
-                         source)
-    if freq[0] < 0:
-        raise InputError(f"the frequency axis has negative values (first line {freq[0]:g} Hz)",
-                         source)
-    bad = np.flatnonzero(np.diff(freq) <= 0)
-    if bad.size:
-        k = int(bad[0]) + 1
-        raise InputError(f"the frequencies are not strictly increasing (line {k}: "
-                         f"{freq[k]:g} Hz after {freq[k - 1]:g} Hz)", source)
-    if values.dtype.kind != "c":
-        raise InputError(f"the FRFs are real (dtype {values.dtype}); real FRFs are refused, "
-                         "not given zero phase", source)
-    if values.ndim != 3 or values.shape[0] != freq.size:
-        raise InputError(f"the FRF array has shape {values.shape}; expected "
-                         f"({freq.size}, n_outputs, n_inputs)", source)
-    if values.size == 0:
-        raise InputError(f"the FRF array is empty (shape {values.shape})", source)
-    values = values.astype(np.complex128)
-    n_bad = int(np.count_nonzero(~np.isfinite(values)))
-    if n_bad:
-        raise InputError(f"the FRFs have {n_bad} non-finite value(s) (NaN or inf)", source)
-    if not np.any(values.imag):
-        raise InputError("every imaginary part of the FRFs is zero: real-valued data, not "
-                         "complex FRFs", source)
-    return freq, values

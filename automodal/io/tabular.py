@@ -29,7 +29,8 @@ import numpy as np
 
 from automodal.errors import InputError
 from automodal.frfdata import QUANTITIES, FRFData
-from automodal.io.readers import check_frf_arrays, check_is_file, check_size, check_text_size
+from automodal.io.limits import check_is_file, check_not_real_valued, check_size, check_text_size
+from automodal.io.refusal import read_refusing
 
 __all__ = ["read_csv", "read_npz"]
 
@@ -78,10 +79,14 @@ def read_csv(path: str | os.PathLike[str]) -> FRFData:
         a value that is not a number, rows of different lengths, not an odd number (at least
         3) of columns, an unknown quantity, or breaks the rules of the FRF file (frequencies
         strictly increasing, >= 0; finite values; not all imaginary parts zero); or when it
-        is larger than :data:`automodal.io.readers.MAX_TEXT_BYTES` (not read).
+        is larger than :data:`automodal.io.limits.MAX_TEXT_BYTES` (not read).
     """
-    source = str(path)
-    text = _read_text(Path(path), source)
+    return read_refusing(_read_csv, path)
+
+
+def _read_csv(path: Path, source: str) -> FRFData:
+    """:func:`read_csv` (raises :class:`InputError` naming ``source`` on a bad file)."""
+    text = _read_text(path, source)
     quantity, quantity_source = "displacement", _assumed("CSV")
     rows: list[tuple[int, str]] = []
     for number, raw in enumerate(text.splitlines(), start=1):
@@ -108,11 +113,12 @@ def read_csv(path: str | os.PathLike[str]) -> FRFData:
         raise InputError(f"{n_cols} columns; {_CSV_LAYOUT} (an odd number of columns, at "
                          "least 3)", source)
     frf = (table[:, 1::2] + 1j * table[:, 2::2])[:, :, np.newaxis]
-    frequency, frf = check_frf_arrays(table[:, 0], frf, source)
     names = [] if header is None else [_pair_name(h, k) for k, h in enumerate(header[1::2])]
-    return FRFData(frequency=frequency, frf=frf, quantity=quantity, output_names=names,
+    data = FRFData(frequency=table[:, 0], frf=frf, quantity=quantity, output_names=names,
                    attributes={"source_format": "CSV table", "quantity_source": quantity_source},
                    source=source)
+    check_not_real_valued(data.frf, source)
+    return data
 
 
 def _read_text(path: Path, source: str) -> str:
@@ -203,12 +209,15 @@ def read_npz(path: str | os.PathLike[str]) -> FRFData:
         One line naming the file, when it is missing, not an ``.npz`` archive (or a damaged
         one), lacks a key, holds a key that is not a ``.npy`` array, a ``frf`` that is real
         or neither 2-D nor 3-D, a ``frequency`` of the wrong length, an unknown ``quantity``,
-        pickled objects, arrays of more than :data:`automodal.io.readers.MAX_VALUES` numbers
+        pickled objects, arrays of more than :data:`automodal.io.limits.MAX_VALUES` numbers
         (refused from their headers, before they are loaded), or breaks the rules of the FRF
         file.
     """
-    source = str(path)
-    p = Path(path)
+    return read_refusing(_read_npz, path)
+
+
+def _read_npz(p: Path, source: str) -> FRFData:
+    """:func:`read_npz` (raises :class:`InputError` naming ``source`` on a bad file)."""
     check_is_file(p, source)
     try:
         loaded = np.load(p, allow_pickle=False)
@@ -241,9 +250,10 @@ def read_npz(path: str | os.PathLike[str]) -> FRFData:
     if frequency.dtype.kind not in "fiu":
         raise InputError(f"'frequency' must hold real numbers, not dtype {frequency.dtype}",
                          source)
-    frequency, frf = check_frf_arrays(frequency, frf, source)
-    return FRFData(frequency=frequency, frf=frf, quantity=quantity, attributes=attributes,
+    data = FRFData(frequency=frequency, frf=frf, quantity=quantity, attributes=attributes,
                    source=source)
+    check_not_real_valued(data.frf, source)
+    return data
 
 
 _NPZ_KEYS = ("frequency", "frf", "quantity")
@@ -255,7 +265,7 @@ def _npz_arrays(archive: np.lib.npyio.NpzFile, source: str) -> dict[str, np.ndar
 
     Their ``.npy`` headers are checked first: a member that is not an ``.npy`` array is
     refused, and so are members that declare more than
-    :data:`~automodal.io.readers.MAX_VALUES` numbers in all, before anything is loaded (a
+    :data:`~automodal.io.limits.MAX_VALUES` numbers in all, before anything is loaded (a
     small compressed archive may declare or hold a huge array). Other members are not read.
     """
     names = set(archive.zip.namelist())

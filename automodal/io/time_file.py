@@ -3,39 +3,25 @@
 ``/time/outputs`` (n_samples, n_outputs) and optionally ``/time/inputs`` (n_samples,
 n_inputs) hold raw time series, the attribute ``sample_rate`` (Hz) on ``/time`` their rate.
 Channel names come from ``/outputs/name`` and ``/inputs/name`` when present. The reader
-refuses a bad file with one :class:`~automodal.errors.InputError` line naming the file, in
-the style of :mod:`automodal.io.frf_file` (whose checks of the file and its header it
-shares).
+refuses a bad file with one :class:`~automodal.errors.InputError` line naming the file: the
+file's layout here (with the shared HDF5 helpers and header of :mod:`automodal.io.hdf5` and
+:mod:`automodal.io.header`), the values by :class:`~automodal.timedata.TimeSeries` itself.
 """
 
 from __future__ import annotations
 
 import os
 from pathlib import Path
-from typing import Any
 
 import h5py
 import numpy as np
 
-from automodal.errors import InputError
-from automodal.frfdata import QUANTITIES
+from automodal.frfdata import quantity_problem
 from automodal.io.atomic import atomic_path
-from automodal.io.frf_file import (
-    _attribute_value,
-    read_refusing,
-    FORMAT_NAME,
-    FORMAT_VERSION,
-    _check_is_file,
-    _dataset,
-    _free_attributes,
-    _group,
-    _open_hdf5,
-    _plain,
-    _read_header,
-    _check_size,
-    _Refused,
-    _string_list,
-)
+from automodal.io.hdf5 import check_dataset_size, dataset, group, open_hdf5, plain, string_list
+from automodal.io.header import free_attributes, read_header, write_header
+from automodal.io.limits import check_is_file
+from automodal.io.refusal import Refused, read_refusing
 from automodal.timedata import TimeSeries
 
 __all__ = ["MIN_SAMPLES", "read_time", "write_time"]
@@ -74,28 +60,23 @@ def read_time(path: str | os.PathLike[str]) -> TimeSeries:
         non-finite values, inputs with another number of samples than the outputs, a
         missing or non-positive ``sample_rate``, fewer than :data:`MIN_SAMPLES` samples,
         a constant (dead) channel, channel names of the wrong length, or an array of more
-        than :data:`automodal.io.readers.MAX_VALUES` numbers (refused before it is read).
+        than :data:`automodal.io.limits.MAX_VALUES` numbers (refused before it is read).
     """
     return read_refusing(_read, path)
 
 
 def _read(path: Path, source: str) -> TimeSeries:
-    """Open, check and read the ``/time`` group (raises :class:`_Refused` on a bad file)."""
-    _check_is_file(path)
-    with _open_hdf5(path) as f:
-        quantity = _read_header(f.attrs)
-        time = _group(f, "time")
+    """Open, check and read the ``/time`` group (raises :class:`Refused` on a bad file)."""
+    check_is_file(path, source)
+    with open_hdf5(path) as f:
+        quantity = read_header(f.attrs)
+        time = group(f, "time")
         if time is None:
-            raise _Refused("no /time group: no time series in the file")
+            raise Refused("no /time group: no time series in the file")
         outputs = _samples(time, "outputs", required=True)
         inputs = _samples(time, "inputs", required=False)
-        if inputs is not None and inputs.shape[0] != outputs.shape[0]:
-            raise _Refused(
-                f"/time/inputs has {inputs.shape[0]} samples but /time/outputs "
-                f"{outputs.shape[0]}"
-            )
         rate = _sample_rate(time)
-        attributes = _free_attributes(f.attrs)
+        attributes = free_attributes(f.attrs)
         if "quantity" in f.attrs:
             attributes["quantity"] = quantity
         return TimeSeries(
@@ -110,32 +91,30 @@ def _read(path: Path, source: str) -> TimeSeries:
 
 
 def _samples(time: h5py.Group, name: str, required: bool) -> np.ndarray | None:
-    """Read ``/time/{name}``: real, 2-D (n_samples, n_channels), finite, long enough."""
+    """Read ``/time/{name}``: real, 2-D (n_samples, n_channels), long enough, no dead
+    channel (finite values and equal lengths are :class:`TimeSeries` rules)."""
     label = f"/time/{name}"
-    ds = _dataset(time, name)
+    ds = dataset(time, name)
     if ds is None:
         if required:
-            raise _Refused(f"no {label} dataset in the /time group")
+            raise Refused(f"no {label} dataset in the /time group")
         return None
     if ds.ndim != 2:
-        raise _Refused(f"{label} must be 2-D (n_samples, n_{name}), but has shape {ds.shape}")
+        raise Refused(f"{label} must be 2-D (n_samples, n_{name}), but has shape {ds.shape}")
     if ds.dtype.kind not in "fiu":
-        raise _Refused(f"{label} must hold real numbers, not dtype {ds.dtype}")
+        raise Refused(f"{label} must hold real numbers, not dtype {ds.dtype}")
     if ds.shape[1] == 0:
-        raise _Refused(f"{label} has no channel (shape {ds.shape})")
+        raise Refused(f"{label} has no channel (shape {ds.shape})")
     if ds.shape[0] < MIN_SAMPLES:
-        raise _Refused(
+        raise Refused(
             f"{label} has {ds.shape[0]} samples, too short: a spectrum needs at least "
             f"{MIN_SAMPLES}"
         )
-    _check_size(ds, label)
+    check_dataset_size(ds, label)
     values = np.asarray(ds[()], dtype=np.float64)
-    bad = ~np.isfinite(values)
-    if bad.any():
-        raise _Refused(f"{label} has {int(bad.sum())} non-finite value(s) (NaN or inf)")
     dead = np.flatnonzero(np.ptp(values, axis=0) == 0)
     if dead.size:
-        raise _Refused(
+        raise Refused(
             f"{label} channel(s) {', '.join(str(int(i) + 1) for i in dead)} are constant "
             "(a dead channel has no spectrum)"
         )
@@ -143,30 +122,28 @@ def _samples(time: h5py.Group, name: str, required: bool) -> np.ndarray | None:
 
 
 def _sample_rate(time: h5py.Group) -> float:
-    """The ``sample_rate`` attribute of ``/time``: one finite number > 0 (Hz)."""
+    """The ``sample_rate`` attribute of ``/time``: one number (Hz; that it is finite and
+    > 0 is a :class:`TimeSeries` rule)."""
     if "sample_rate" not in time.attrs:
-        raise _Refused("the /time group has no sample_rate attribute (Hz)")
-    value = _plain(time.attrs["sample_rate"])
+        raise Refused("the /time group has no sample_rate attribute (Hz)")
+    value = plain(time.attrs["sample_rate"])
     if isinstance(value, list) and len(value) == 1:
         value = value[0]
     if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise _Refused(f"/time sample_rate must be a number in Hz, not {value!r}")
-    rate = float(value)
-    if not (np.isfinite(rate) and rate > 0):
-        raise _Refused(f"/time sample_rate must be a finite number > 0, not {rate:g}")
-    return rate
+        raise Refused(f"/time sample_rate must be a number in Hz, not {value!r}")
+    return float(value)
 
 
 def _names(f: h5py.File, side: str, n: int) -> list[str]:
     """``/{side}/name`` when present (one per channel), else the default names."""
-    group = _group(f, side)
-    ds = None if group is None else _dataset(group, "name")
+    parent = group(f, side)
+    ds = None if parent is None else dataset(parent, "name")
     if ds is None:
         return []
     label = f"/{side}/name"
     if ds.ndim != 1 or ds.shape[0] != n:
-        raise _Refused(f"{label} has shape {ds.shape}, but /time/{side} has {n} channels")
-    return _string_list(ds, label)
+        raise Refused(f"{label} has shape {ds.shape}, but /time/{side} has {n} channels")
+    return string_list(ds, label)
 
 
 # --------------------------------------------------------------------------------- writing
@@ -193,15 +170,11 @@ def write_time(path: str | os.PathLike[str], ts: TimeSeries) -> None:
         If an attribute value cannot be stored in HDF5.
     """
     quantity = ts.attributes.get("quantity")
-    if quantity is not None and quantity not in QUANTITIES:
-        raise ValueError(f"unknown quantity {quantity!r}")
+    if quantity is not None and quantity_problem(quantity):
+        raise ValueError(quantity_problem(quantity))
     strings = h5py.string_dtype()
     with atomic_path(path) as tmp, h5py.File(tmp, "w") as f:
-        f.attrs["format"] = FORMAT_NAME
-        f.attrs["version"] = FORMAT_VERSION
-        for key, value in ts.attributes.items():
-            if key not in ("format", "version"):
-                f.attrs[key] = _attribute_value(value)
+        write_header(f, ts.attributes, quantity)
         time = f.create_group("time")
         time.attrs["sample_rate"] = float(ts.sample_rate)
         time.create_dataset("outputs", data=np.asarray(ts.outputs, dtype=np.float64))

@@ -17,7 +17,8 @@ import numpy as np
 
 from automodal.errors import InputError
 from automodal.frfdata import FRFData
-from automodal.io.readers import check_frf_arrays, check_is_file, check_text_size
+from automodal.io.limits import check_is_file, check_not_real_valued, check_text_size
+from automodal.io.refusal import describe, read_refusing
 
 __all__ = ["FUNCTION_TYPES", "direction_name", "read_uff"]
 
@@ -105,10 +106,13 @@ def read_uff(path: str | os.PathLike[str]) -> FRFData:
         found), real-valued data, sets over different frequency axes, a non-frequency
         abscissa, a ratio of motion to motion, sets that disagree on the response quantity,
         an (output, input) pair given twice or missing, or non-finite values; or when it is
-        larger than :data:`automodal.io.readers.MAX_TEXT_BYTES` (not read).
+        larger than :data:`automodal.io.limits.MAX_TEXT_BYTES` (not read).
     """
-    source = str(path)
-    p = Path(path)
+    return read_refusing(_read_uff, path)
+
+
+def _read_uff(p: Path, source: str) -> FRFData:
+    """:func:`read_uff` (raises :class:`InputError` naming ``source`` on a bad file)."""
     check_is_file(p, source)
     check_text_size(p, source)
     sets = _read_sets(p, source)
@@ -124,9 +128,8 @@ def read_uff(path: str | os.PathLike[str]) -> FRFData:
     frequency, frf, dropped = _drop_placeholder_dc_line(frequency, frf)
     if dropped:
         attributes["dropped_0hz_line"] = dropped
-    frequency, frf = check_frf_arrays(frequency, frf, source)
     output_names, input_names = _channel_names(outputs, inputs)
-    return FRFData(
+    data = FRFData(
         frequency=frequency,
         frf=frf,
         quantity=quantity,
@@ -139,6 +142,8 @@ def read_uff(path: str | os.PathLike[str]) -> FRFData:
         attributes=attributes,
         source=source,
     )
+    check_not_real_valued(data.frf, source)
+    return data
 
 
 def direction_name(code: int) -> str:
@@ -176,7 +181,7 @@ def _read_sets(path: Path, source: str) -> list[tuple[int, dict[str, Any]]]:
         uff = pyuff.UFF(os.fspath(path))
         types = [int(t) for t in uff.get_set_types()]
     except Exception as exc:  # noqa: BLE001 - pyuff raises bare Exception
-        raise InputError(f"cannot read as a UFF file: {_describe(exc)}", source) from exc
+        raise InputError(f"cannot read as a UFF file: {describe(exc)}", source) from exc
     wanted = [i for i, t in enumerate(types) if t == 58]
     if not wanted:
         found = sorted({t for t in types if t > 0})
@@ -188,7 +193,7 @@ def _read_sets(path: Path, source: str) -> list[tuple[int, dict[str, Any]]]:
         try:
             dset = uff.read_sets(i)
         except Exception as exc:  # noqa: BLE001 - pyuff raises bare Exception
-            raise InputError(f"cannot read data set {i + 1} (dataset 58): {_describe(exc)}",
+            raise InputError(f"cannot read data set {i + 1} (dataset 58): {describe(exc)}",
                              source) from exc
         sets.append((i + 1, dset))
     return sets
@@ -393,8 +398,3 @@ def _format_name(sets: list[tuple[int, dict[str, Any]]]) -> str:
     """``"UFF dataset 58 (ASCII)"``, ``"... (binary)"`` or ``"... (ASCII and binary)"``."""
     kinds = {"binary" if dset.get("binary") else "ASCII" for _, dset in sets}
     return f"UFF dataset 58 ({' and '.join(sorted(kinds))})"
-
-
-def _describe(exc: BaseException) -> str:
-    """One line saying what an exception was."""
-    return " ".join(str(exc).split()) or type(exc).__name__
