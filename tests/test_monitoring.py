@@ -15,12 +15,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from report_schema import schema_errors
 
+from automodal.app import monitoring as mon
 from automodal.app.batch import expand_inputs, report_stems, run_batch
 from automodal.cli import main
-from automodal.app import monitoring as mon
-from automodal.core.matching import ModeTable
 from automodal.core import simulate as sim
+from automodal.core.matching import ModeTable
 from automodal.io.frf_file import write_frf
 from automodal.io.history import is_history_file, read_history, write_history
 from automodal.io.report import read_report
@@ -161,6 +162,7 @@ def test_remeasured_structure_passes_and_softer_spring_is_flagged(site, tmp_path
     again = cli("identify", site["incoming"] / "m01.h5", "-o", tmp_path / "again.json",
                 "--baseline", site["baseline"], *BOOTSTRAP)
     assert again.exit_code == 0, again.output
+    assert schema_errors(read_report(tmp_path / "again.json")) == []
     block = read_report(tmp_path / "again.json")["monitoring"]
     assert block["flagged"] is False and block["n_flagged"] == 0
     assert block["baseline"]["path"] == str(site["baseline"])
@@ -206,6 +208,8 @@ def test_batch_with_a_corrupt_file_reports_the_good_ones_and_exits_2(site, tmp_p
     assert status["m01.h5"]["n_physical"] == 3 and len(status["m01.h5"]["frequencies_hz"]) == 3
     rows = list(csv.DictReader((out / "summary.csv").open()))
     assert [r["status"] for r in rows] == ["ok", "ok", "failed"]
+    for name in ("m01.json", "m01.h5"):
+        assert schema_errors(read_report(out / name)) == []
     assert rows[0]["test_date"] == "2026-03-01T06:00:00Z"
     assert len(rows[0]["frequencies_hz"].split()) == 3
 

@@ -11,16 +11,15 @@ from pathlib import Path
 
 os.environ["MPLBACKEND"] = "Agg"
 
-import h5py  # noqa: E402
-import numpy as np  # noqa: E402
-import pytest  # noqa: E402
+import cases
+import h5py
+import numpy as np
+import pytest
 
-import cases  # noqa: E402
-
-from automodal.app import plots  # noqa: E402
-from automodal.errors import InputError  # noqa: E402
-from automodal.frfdata import FRFData  # noqa: E402
-from automodal.io.report import (  # noqa: E402
+from automodal.app import plots
+from automodal.errors import InputError
+from automodal.frfdata import FRFData
+from automodal.io.report import (
     MAX_FRF_LINES,
     read_report,
     read_report_arrays,
@@ -28,7 +27,7 @@ from automodal.io.report import (  # noqa: E402
     save_report,
     write_report,
 )
-from automodal.pipeline import Result, Settings, identify  # noqa: E402
+from automodal.pipeline import Result, Settings, identify
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 

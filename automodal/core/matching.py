@@ -139,7 +139,9 @@ def match(
     allowed = rel <= max_relative_shift
     allowed &= np.isnan(macs) | (np.nan_to_num(macs) >= min_mac)
     cost = np.where(allowed, cost, INADMISSIBLE)
-    from scipy.optimize import linear_sum_assignment  # imported here: it is slow to load
+    from scipy.optimize import (
+        linear_sum_assignment,  # imported here: it is slow to load
+    )
 
     rows, cols = linear_sum_assignment(cost)
     return [(int(i), int(j)) for i, j in zip(rows, cols) if allowed[i, j]]

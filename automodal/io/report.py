@@ -15,7 +15,6 @@ and is finite: a NaN or infinity becomes ``None`` (JSON ``null``) and adds a lin
 
 from __future__ import annotations
 
-import datetime as _dt
 import hashlib
 import json
 import math
@@ -40,6 +39,7 @@ from automodal.report_model import (
     ReportArrays,
     ReportMode,
     frequency_key,
+    utc_now,
 )
 
 __all__ = [
@@ -150,8 +150,8 @@ def file_sha256(path: str | os.PathLike[str]) -> str:
 
 
 def _utc_now() -> str:
-    """The current UTC time as ISO 8601 with seconds and ``Z``."""
-    return _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
+    """The current UTC time as ISO 8601 with seconds and ``Z`` (the report's ``created``)."""
+    return utc_now()
 
 
 # ------------------------------------------------------------------------------ writing
