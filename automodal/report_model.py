@@ -48,6 +48,7 @@ __all__ = [
     "FORMAT_NAME",
     "FORMAT_VERSION",
     "FRFArrays",
+    "MonitoringBlock",
     "Report",
     "ReportArrays",
     "ReportHeader",
@@ -341,6 +342,11 @@ class ReportSettings:
     def to_dict(self) -> dict[str, Any]:
         return dict(self.values)
 
+    def records(self, values: Mapping[str, Any]) -> bool:
+        """Whether every one of ``values`` (plain JSON, e.g. ``json_safe(settings.to_dict())``)
+        is recorded here with the same value."""
+        return all(self.values.get(k) == v for k, v in values.items())
+
     @property
     def n_bootstrap(self) -> int | None:
         """Bootstrap replicates."""
@@ -493,6 +499,62 @@ class ReportSummary:
 
 
 @dataclass
+class MonitoringBlock:
+    """The ``monitoring`` section a baseline check adds (:mod:`automodal.app.monitoring`).
+
+    Attributes
+    ----------
+    baseline : dict
+        ``path``, ``created`` and ``input_sha256`` of the baseline report.
+    flagged : bool
+        Whether any mode raised the alarm.
+    n_flagged : int
+    thresholds : dict
+        The thresholds applied (``Thresholds.to_dict()``).
+    modes : list of dict
+        One check per physical baseline mode, then one per new mode (``status``,
+        ``flagged``, ``reasons``, ``message``, the frequencies, ...).
+    extra : dict
+        Keys of a later writer.
+    """
+
+    baseline: dict[str, Any]
+    flagged: bool
+    n_flagged: int
+    thresholds: dict[str, Any]
+    modes: list[dict[str, Any]]
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    @classmethod
+    def from_dict(cls, obj: Any, where: str = "monitoring") -> MonitoringBlock:
+        f = _Fields(obj, where)
+        modes = f.req("modes", _list)
+        for i, entry in enumerate(modes):
+            e = _Fields(entry, f"{where}.modes[{i}]")
+            e.req("status", _str)
+            e.req("flagged", _bool)
+            e.req("message", _str)
+        return cls(
+            baseline=f.req("baseline", _dict),
+            flagged=f.req("flagged", _bool),
+            n_flagged=f.req("n_flagged", _count),
+            thresholds=f.req("thresholds", _dict),
+            modes=modes,
+            extra=f.extra(),
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"baseline": self.baseline, "flagged": self.flagged,
+                "n_flagged": self.n_flagged, "thresholds": self.thresholds,
+                "modes": self.modes, **self.extra}
+
+    @property
+    def flagged_messages(self) -> list[str]:
+        """One readable line per flagged mode."""
+        return [str(e["message"]) for e in self.modes if e["flagged"]]
+
+
+@dataclass
 class ReportArrays:
     """Arrays a report keeps outside its JSON content (HDF5 ``/poles`` and ``/frf``).
 
@@ -526,7 +588,7 @@ class Report:
     trashbox : Trashbox
     summary : ReportSummary
     warnings : list of str
-    monitoring : dict or None
+    monitoring : MonitoringBlock or None
         The block a baseline check adds (see :mod:`automodal.app.monitoring`).
     extra : dict
         Top-level keys of a later writer.
@@ -541,7 +603,7 @@ class Report:
     trashbox: Trashbox
     summary: ReportSummary
     warnings: list[str]
-    monitoring: dict[str, Any] | None = None
+    monitoring: MonitoringBlock | None = None
     extra: dict[str, Any] = field(default_factory=dict)
     arrays: ReportArrays = field(default_factory=ReportArrays, compare=False, repr=False)
 
@@ -656,7 +718,7 @@ class Report:
             trashbox=Trashbox.from_dict(f.req("trashbox", _dict)),
             summary=ReportSummary.from_dict(f.req("summary", _dict)),
             warnings=f.req("warnings", _strings),
-            monitoring=f.opt("monitoring", _optional(_dict)),
+            monitoring=f.opt("monitoring", _optional(MonitoringBlock.from_dict)),
             extra=f.extra(),
         )
 
@@ -672,7 +734,7 @@ class Report:
             "warnings": list(self.warnings),
         })
         if self.monitoring is not None:
-            out["monitoring"] = self.monitoring
+            out["monitoring"] = self.monitoring.to_dict()
         out.update(self.extra)
         return out
 

@@ -309,14 +309,13 @@ def _up_to_date(
             return None
         if report.input.sha256 != sha:
             return None
-        recorded = report.settings.values
-        if any(recorded.get(k) != v for k, v in wanted.items()):
+        if not report.settings.records(wanted):
             return None
         if baseline is not None:
-            block = report.monitoring or {}
-            same = block.get("baseline") == baseline_identity(baseline, baseline_path or "")
-            th = (thresholds or Thresholds()).to_dict()
-            if not same or block.get("thresholds") != th:
+            block = report.monitoring
+            if (block is None
+                    or block.baseline != baseline_identity(baseline, baseline_path or "")
+                    or block.thresholds != (thresholds or Thresholds()).to_dict()):
                 return None
         first = first or report
     return first
@@ -336,9 +335,8 @@ def _outcome(
         reports=[str(t) for t in targets],
         n_physical=len(physical),
         frequencies_hz=[m.frequency_hz for m in physical],
-        monitoring=None if block is None else ("flagged" if block.get("flagged") else "pass"),
-        flagged_modes=[e["message"] for e in block.get("modes", []) if e.get("flagged")]
-        if block else [],
+        monitoring=None if block is None else ("flagged" if block.flagged else "pass"),
+        flagged_modes=[] if block is None else block.flagged_messages,
         runtime_s=round(runtime, 3),
     )
 

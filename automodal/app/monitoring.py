@@ -47,7 +47,7 @@ import numpy as np
 
 from automodal.core.matching import ModeTable, cluster_mac, match
 from automodal.io.json_safe import json_safe
-from automodal.report_model import Report
+from automodal.report_model import MonitoringBlock, Report
 
 __all__ = [
     "History",
@@ -314,8 +314,9 @@ def attach_monitoring(
 
     result = compare_reports(baseline, report, thresholds)
     non_finite: list[str] = []
-    report.monitoring = {"baseline": baseline_identity(baseline, baseline_path),
-                         **result.to_dict(non_finite, "monitoring")}
+    report.monitoring = MonitoringBlock.from_dict(
+        {"baseline": baseline_identity(baseline, baseline_path),
+         **result.to_dict(non_finite, "monitoring")})
     report.warnings.extend(non_finite_warnings(non_finite))
     return result
 
