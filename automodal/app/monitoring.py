@@ -1,8 +1,8 @@
 """Monitoring: today's modes against a baseline's, and modes tracked over time.
 
-The application side of monitoring (no file I/O): reports (:class:`~automodal.report_model.Report`)
-in, verdicts, messages and histories out. The numerical matching is
-:mod:`automodal.core.matching`. :func:`compare` matches the physical modes of a new run to
+The application side of monitoring: reports (:class:`~automodal.report_model.Report`) in,
+verdicts, messages, monitoring blocks and histories out (only :func:`history_of_files`
+reads files). The numerical matching is :mod:`automodal.core.matching`. :func:`compare` matches the physical modes of a new run to
 those of a baseline run by frequency and mode shape (a Hungarian assignment on a cost that
 adds the relative frequency distance to ``1 - MAC``) and flags a baseline mode
 
