@@ -118,7 +118,7 @@ def test_dropped_channel_keeps_report_and_shape_plot_consistent():
 
     matplotlib.use("Agg")
     from automodal.io.report import report_dict
-    from automodal.plots import mode_shapes
+    from automodal.app.plots import mode_shapes
 
     system = sim.damp(sim.grid(2, 3), zeta=0.01)
     lines = sim.frequency_lines(1.25 * sim.natural_frequencies_hz(system).max(), 600)

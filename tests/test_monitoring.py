@@ -15,14 +15,17 @@ from pathlib import Path
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from report_schema import schema_errors
 
-from automodal.batch import expand_inputs, report_stems, run_batch
+from automodal.app import monitoring as mon
+from automodal.app.batch import expand_inputs, report_stems, run_batch
 from automodal.cli import main
-from automodal.core import monitoring as mon
 from automodal.core import simulate as sim
+from automodal.core.matching import ModeTable
 from automodal.io.frf_file import write_frf
 from automodal.io.history import is_history_file, read_history, write_history
 from automodal.io.report import read_report
+from automodal.report_model import Report
 from automodal.settings import Settings
 
 N_MEASUREMENTS = 10
@@ -77,11 +80,11 @@ def site(tmp_path_factory) -> dict[str, Path]:
     return {"root": root, "incoming": incoming, "baseline": root / "baseline.json"}
 
 
-def table(freqs, stds=None, shapes=None, physical=None) -> mon.ModeTable:
+def table(freqs, stds=None, shapes=None, physical=None) -> ModeTable:
     """A mode table for the unit tests (shapes default to unit vectors)."""
     f = np.asarray(freqs, dtype=float)
     n = f.size
-    return mon.ModeTable(
+    return ModeTable(
         ids=np.arange(1, n + 1),
         frequency_hz=f,
         frequency_std_hz=np.full(n, 1e-3) if stds is None else np.asarray(stds, float),
@@ -139,11 +142,12 @@ def test_compare_refuses_shapes_on_other_channels():
 
 
 def test_report_time_prefers_the_test_date():
-    report = {"created": "2026-05-01T00:00:00Z",
-              "input": {"attributes": {"date": "2024-05-01T10:30:00"}}}
-    assert mon.report_time(report) == ("2024-05-01T10:30:00Z", "test_date")
-    report["input"]["attributes"] = {"date": "yesterday"}
-    assert mon.report_time(report) == ("2026-05-01T00:00:00Z", "created")
+    report = _report("2026-05-01T00:00:00Z", [], {"date": "2024-05-01T10:30:00"})
+    assert report.test_time() == ("2024-05-01T10:30:00Z", "test_date")
+    assert report.test_date() == "2024-05-01T10:30:00Z"
+    report.input.attributes = {"date": "yesterday"}
+    assert report.test_time() == ("2026-05-01T00:00:00Z", "created")
+    assert report.test_date() is None
 
 
 def test_report_stems_avoid_collisions():
@@ -158,6 +162,7 @@ def test_remeasured_structure_passes_and_softer_spring_is_flagged(site, tmp_path
     again = cli("identify", site["incoming"] / "m01.h5", "-o", tmp_path / "again.json",
                 "--baseline", site["baseline"], *BOOTSTRAP)
     assert again.exit_code == 0, again.output
+    assert schema_errors(read_report(tmp_path / "again.json")) == []
     block = read_report(tmp_path / "again.json")["monitoring"]
     assert block["flagged"] is False and block["n_flagged"] == 0
     assert block["baseline"]["path"] == str(site["baseline"])
@@ -203,6 +208,8 @@ def test_batch_with_a_corrupt_file_reports_the_good_ones_and_exits_2(site, tmp_p
     assert status["m01.h5"]["n_physical"] == 3 and len(status["m01.h5"]["frequencies_hz"]) == 3
     rows = list(csv.DictReader((out / "summary.csv").open()))
     assert [r["status"] for r in rows] == ["ok", "ok", "failed"]
+    for name in ("m01.json", "m01.h5"):
+        assert schema_errors(read_report(out / name)) == []
     assert rows[0]["test_date"] == "2026-03-01T06:00:00Z"
     assert len(rows[0]["frequencies_hz"].split()) == 3
 
@@ -245,9 +252,8 @@ def test_history_of_ten_measurements_flags_from_the_seventh_on(site, tmp_path):
 
 
 def test_history_file_round_trip_and_plot_gids(tmp_path):
-    base = {"created": "2026-01-01T00:00:00Z", "modes": [
-        _mode(1, 5.0), _mode(2, 12.0)]}
-    later = [{"created": f"2026-01-0{d}T00:00:00Z", "modes": [_mode(1, 5.0), _mode(2, f)]}
+    base = _report("2026-01-01T00:00:00Z", [_mode(1, 5.0), _mode(2, 12.0)])
+    later = [_report(f"2026-01-0{d}T00:00:00Z", [_mode(1, 5.0), _mode(2, f)])
              for d, f in ((2, 12.0), (3, 11.5))]
     history = mon.build_history(later[::-1], ["day3.json", "day2.json"], base, "base.json")
     assert history.labels == ["day2.json", "day3.json"]  # sorted by time
@@ -259,7 +265,7 @@ def test_history_file_round_trip_and_plot_gids(tmp_path):
     np.testing.assert_array_equal(back.frequency_hz, history.frequency_hz)
     assert back.thresholds == history.thresholds
 
-    from automodal.plots import trend
+    from automodal.app.plots import trend
 
     fig = trend(back)
     gids = {c.get_gid() for ax in fig.axes for c in ax.collections}
@@ -269,8 +275,28 @@ def test_history_file_round_trip_and_plot_gids(tmp_path):
 def _mode(i: int, f: float) -> dict:
     return {"id": i, "frequency_hz": f, "frequency_std_hz": 1e-3,
             "frequency_ci95_hz": [f - 2e-3, f + 2e-3], "damping_ratio": 0.01,
-            "damping_std": 1e-4, "damping_ci95": [0.0098, 0.0102], "physical": True,
-            "mode_shape": {"real": [1.0 if k == i else 0.0 for k in (1, 2)], "imag": [0.0, 0.0]}}
+            "damping_std": 1e-4, "damping_ci95": [0.0098, 0.0102], "physicalness": 0.9,
+            "physical": True, "n_members": 20,
+            "mode_shape": {"real": [1.0 if k == i else 0.0 for k in (1, 2)], "imag": [0.0, 0.0]},
+            "mode_shape_std": [0.0, 0.0], "mpc": 1.0}
+
+
+def _report(created: str, modes: list[dict], attributes: dict | None = None) -> Report:
+    """A small hand-made report (two output channels) as the model."""
+    return Report.from_dict({
+        "format": "automodal-report", "version": 1, "automodal_version": "0.1.0",
+        "created": created,
+        "input": {"path": None, "sha256": None, "n_freq": 100, "n_outputs": 2, "n_inputs": 1,
+                  "band_hz": [1.0, 30.0], "quantity": "displacement",
+                  "output_names": ["y1", "y2"], "input_names": ["u1"],
+                  "attributes": attributes or {}},
+        "settings": {"seed": 0, "n_bootstrap": 20},
+        "modes": modes,
+        "trashbox": {"n_members": 0},
+        "summary": {"n_physical": len(modes), "n_clusters": len(modes), "n_bootstrap": 20,
+                    "runtime_s": 0.1},
+        "warnings": [],
+    })
 
 
 def test_bad_batch_usage_exits_2(site, tmp_path):

@@ -1,4 +1,4 @@
-"""Figures from a report (automodal.plots), the FRF arrays of the HDF5 report, the CLI."""
+"""Figures from a report (automodal.app.plots), the FRF arrays of the HDF5 report, the CLI."""
 
 from __future__ import annotations
 
@@ -11,16 +11,15 @@ from pathlib import Path
 
 os.environ["MPLBACKEND"] = "Agg"
 
-import h5py  # noqa: E402
-import numpy as np  # noqa: E402
-import pytest  # noqa: E402
+import cases
+import h5py
+import numpy as np
+import pytest
 
-import cases  # noqa: E402
-
-from automodal import plots  # noqa: E402
-from automodal.errors import InputError  # noqa: E402
-from automodal.frfdata import FRFData  # noqa: E402
-from automodal.io.report import (  # noqa: E402
+from automodal.app import plots
+from automodal.errors import InputError
+from automodal.frfdata import FRFData
+from automodal.io.report import (
     MAX_FRF_LINES,
     read_report,
     read_report_arrays,
@@ -314,7 +313,7 @@ def test_cli_plot_bad_input_exits_2(identified, tmp_path, make, output, message)
 def test_help_and_import_never_load_matplotlib():
     code = (
         "import sys\n"
-        "import automodal.plots, automodal.io.report\n"
+        "import automodal.app.plots, automodal.io.report\n"
         "from automodal.cli import main\n"
         "try:\n"
         "    main(['--help'])\n"

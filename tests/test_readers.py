@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 import pyuff
 
-from automodal.cli.identify_cmd import read_input
+from automodal.app.run import read_input
 from automodal.errors import InputError
 from automodal.frfdata import FRFData
 from automodal.io.frf_file import read_frf, write_frf

@@ -5,7 +5,7 @@ from __future__ import annotations
 import os
 import sys
 import warnings
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -22,8 +22,10 @@ from automodal.cli._common import (
 from automodal.errors import InputError
 
 if TYPE_CHECKING:
-    from automodal.batch import FileOutcome
-    from automodal.pipeline import Result, Settings
+    from automodal.app.batch import FileOutcome
+    from automodal.app.run import RunOutcome
+    from automodal.settings import Settings
+    from automodal.report_model import Report
 
 REPORT_SUFFIXES = (".json", ".h5", ".hdf5")
 
@@ -39,18 +41,6 @@ def _check_outputs(outputs: tuple[str, ...]) -> None:
             raise InputError("the report's folder does not exist", out)
         if not os.access(parent, os.W_OK | os.X_OK):
             raise InputError("the report's folder is not writable", out)
-
-
-def _save(out: str, report: dict, result: Result) -> None:
-    """Write the report ``out`` (atomically: whole or not at all); a failure to write
-    (read-only folder, full disk) becomes an :class:`InputError` naming the report."""
-    from automodal.io.report import save_report
-
-    try:
-        save_report(out, report, result.poles, frf=result.frf_fit)
-    except OSError as exc:
-        reason = exc.strerror or " ".join(str(exc).split()) or type(exc).__name__
-        raise InputError(f"cannot write the report: {reason}", out) from exc
 
 
 @contextmanager
@@ -78,22 +68,11 @@ def _quiet_warnings(debug: bool) -> Iterator[None]:
             os.environ["PYTHONWARNINGS"] = saved
 
 
-def read_input(path: str):
-    """Read any supported input file into an :class:`FRFData` (see :func:`read_any`)."""
-    p = Path(path)
-    if p.is_dir():
-        raise InputError("is a folder, not an input file", path)
-    from automodal.core.from_time import as_frfdata
-    from automodal.io.readers import read_any
-
-    return as_frfdata(read_any(path))
-
-
-def read_baseline(path: str) -> dict:
+def read_baseline(path: str) -> Report:
     """Read the ``--baseline`` report (a refusal names the file and exits 2)."""
-    from automodal.io.report import read_report
+    from automodal.io.report import load_report
 
-    return read_report(path)
+    return load_report(path)
 
 
 def _batch_outdir(outputs: tuple[str, ...]) -> Path:
@@ -111,11 +90,12 @@ def _batch_outdir(outputs: tuple[str, ...]) -> Path:
     return out
 
 
-def _run_batch(input_path: str, outputs: tuple[str, ...], settings: Settings, baseline: dict | None,
+def _run_batch(input_path: str, outputs: tuple[str, ...], settings: Settings,
+               baseline: Report | None,
                baseline_path: str | None, report_format: str, force: bool, jobs: int | None,
                dask_scheduler: str | None, as_json: bool, quiet: bool) -> int:
     """Batch mode of ``identify``: every file of a folder or glob; returns the exit status."""
-    from automodal.batch import expand_inputs, run_batch
+    from automodal.app.batch import expand_inputs, run_batch
 
     outdir = _batch_outdir(outputs)
     files = expand_inputs(input_path, exclude=outdir)
@@ -162,9 +142,10 @@ def _run_batch(input_path: str, outputs: tuple[str, ...], settings: Settings, ba
               help="Analysed band in Hz (default: the data's span).")
 @click.option("--order", "max_order", type=click.IntRange(4, 5000), default=None,
               help="Largest model order (states) considered (default: automatic).")
-@click.option("--jobs", type=int, default=None,
-              help="Cores to use: threads for one file's bootstrap, processes across the files of a "
-              "batch (default: all cores); never changes the result.")
+@click.option("--jobs", type=click.IntRange(min=1), default=None,
+              help="Cores to use (>= 1): threads for one file's bootstrap, processes across the "
+              "files of a batch. Default: automatic (all cores when the work pays for them). "
+              "Never changes the result.")
 @click.option("--plot", "plot_dir", type=click.Path(file_okay=False), default=None, metavar="DIR",
               help="Also write the standard figures (PNG) into DIR.")
 @click.option("--baseline", "baseline_path", type=click.Path(), default=None, metavar="REPORT",
@@ -215,8 +196,8 @@ def identify(
       automodal identify 'incoming/*.h5' -o reports/ --baseline baseline.json --quiet
     """
     with exit_on_error(debug), _quiet_warnings(debug):
-        from automodal.batch import is_batch_input
-        from automodal.pipeline import Settings
+        from automodal.app.batch import is_batch_input
+        from automodal.settings import Settings
 
         settings = Settings(
             band_hz=tuple(band) if band else None,
@@ -236,38 +217,29 @@ def identify(
         if batch:
             sys.exit(_run_batch(input_path, outputs, settings, baseline, baseline_path,
                                 report_format, force, jobs, dask_scheduler, as_json, quiet))
-        data = read_input(input_path)
-        from automodal.io.report import format_table, report_dict
-        from automodal.pipeline import identify as run
+        from automodal.app.run import run_file
+        from automodal.io.report import format_table
 
-        show_bar = not quiet and sys.stderr.isatty()
-        if show_bar:
+        def run(progress: Callable[[int], None] | None = None) -> RunOutcome:
+            return run_file(input_path, settings, outputs, baseline, baseline_path,
+                            progress=progress)
+
+        if not quiet and sys.stderr.isatty():
             with click.progressbar(length=n_bootstrap, label="bootstrap", file=sys.stderr) as bar:
-                result = run(data, settings, progress=bar.update)
+                outcome = run(bar.update)
         else:
-            result = run(data, settings)
-        report = report_dict(result, data, input_path=input_path)
-        check = None
-        if baseline is not None:
-            from automodal.batch import attach_monitoring
-
-            try:
-                check = attach_monitoring(report, baseline, baseline_path)
-            except ValueError as exc:
-                raise InputError(f"cannot be checked against {baseline_path}: {exc}",
-                                 input_path) from None
-        for out in outputs:
-            _save(out, report, result)
+            outcome = run()
         if plot_dir:
-            from automodal.plots import save_figures
+            from automodal.app.plots import save_figures
 
-            save_figures(report, {"poles": result.poles, "frf": result.frf_fit}, plot_dir)
+            save_figures(outcome.report, None, plot_dir)
         if as_json:
             import json
 
-            click.echo(json.dumps(report, indent=2))
+            click.echo(json.dumps(outcome.report.to_dict(), indent=2))
         elif not quiet:
-            click.echo(format_table(result))
+            click.echo(format_table(outcome.result))
+        check = outcome.check
         if check is not None and not quiet:
             for entry in check.flagged_entries:
                 click.echo(f"{input_path}: {entry.message}", err=as_json)

@@ -3,11 +3,15 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import click
 
 from automodal.cli._common import debug_option, exit_on_error
 from automodal.errors import InputError
+
+if TYPE_CHECKING:
+    from automodal.report_model import ReportArrays
 
 FIGURE_SUFFIXES = (".png", ".svg", ".pdf")
 
@@ -27,10 +31,10 @@ def _check_output(out: Path) -> None:
         raise InputError("the figure's folder does not exist", str(out))
 
 
-def _missing(report_path: str, arrays: dict) -> str | None:
+def _missing(report_path: str, arrays: ReportArrays) -> str | None:
     """One line naming what the report lacks for a full figure, or None."""
-    needs = (("poles", "bootstrap poles"), ("frf", "FRFs"))
-    lacks = [what for key, what in needs if not arrays[key]]
+    needs = ((arrays.poles, "bootstrap poles"), (arrays.frf, "FRFs"))
+    lacks = [what for found, what in needs if not found]
     if not lacks:
         return None
     return (
@@ -72,20 +76,19 @@ def plot(report_path: str, output: str | None, dpi: int, debug: bool) -> None:
         if is_history_file(report_path):
             _plot_history(report_path, out, dpi)
             return
-        from automodal.io.report import read_report, read_report_arrays
+        from automodal.io.report import load_report
 
-        report = read_report(report_path)
-        arrays = read_report_arrays(report_path)
-        note = _missing(report_path, arrays)
+        report = load_report(report_path, arrays=True)
+        note = _missing(report_path, report.arrays)
         if note:
             click.echo(note, err=True)
 
         import matplotlib
 
         matplotlib.use("Agg")
-        from automodal.plots import overview, save_figure
+        from automodal.app.plots import overview, save_figure
 
-        fig = overview(report, arrays["poles"] or None, arrays["frf"] or None)
+        fig = overview(report, report.arrays.poles, report.arrays.frf)
         save_figure(fig, out, dpi=dpi)
         click.echo(str(out))
 
@@ -98,7 +101,7 @@ def _plot_history(path: str, out: Path, dpi: int) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
-    from automodal.plots import save_figure, trend
+    from automodal.app.plots import save_figure, trend
 
     save_figure(trend(history), out, dpi=dpi)
     click.echo(str(out))

@@ -65,24 +65,14 @@ def track(reports: tuple[str, ...], output: str, baseline_path: str | None, quie
         out = Path(output)
         if not out.parent.is_dir():
             raise InputError("the history file's folder does not exist", str(out))
-        from automodal.core.monitoring import build_history
+        from automodal.app.monitoring import history_of_files
         from automodal.io.history import write_history
-        from automodal.io.report import read_report
 
         files = report_files(reports)
         if not files:
             raise InputError("no report found", " ".join(reports))
-        loaded = [read_report(f) for f in files]
-        if baseline_path:
-            baseline, label = read_report(baseline_path), baseline_path
-        else:
-            times = [_time_or_refuse(r, f) for r, f in zip(loaded, files)]
-            first = min(range(len(files)), key=lambda i: (times[i], files[i]))
-            baseline, label = loaded[first], files[first]
-        try:
-            history = build_history(loaded, files, baseline, label)
-        except ValueError as exc:
-            raise InputError(str(exc)) from None
+        history = history_of_files(files, baseline_path)
+        label = history.baseline_label
         write_history(out, history)
         if not quiet:
             for t in range(history.n_times):
@@ -92,13 +82,3 @@ def track(reports: tuple[str, ...], output: str, baseline_path: str | None, quie
                 click.echo(f"{history.times[t]}  {history.labels[t]}: {state}")
             click.echo(f"{history.n_times} reports, {history.n_modes} modes tracked against "
                        f"{label}; {int(history.flagged.sum())} flagged; written to {out}")
-
-
-def _time_or_refuse(report: dict, path: str) -> str:
-    """A report's time, or an :class:`InputError` naming the file."""
-    from automodal.core.monitoring import report_time
-
-    try:
-        return report_time(report)[0]
-    except ValueError as exc:
-        raise InputError(str(exc), path) from None

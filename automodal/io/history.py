@@ -32,7 +32,7 @@ import h5py
 import numpy as np
 
 from automodal import __version__
-from automodal.core.monitoring import History, Thresholds
+from automodal.app.monitoring import History, Thresholds
 from automodal.errors import InputError
 from automodal.io.atomic import atomic_path
 

@@ -28,6 +28,7 @@ from automodal import __version__
 from automodal.core.simulate import Modes
 from automodal.errors import InputError
 from automodal.io.atomic import atomic_path
+from automodal.io.json_safe import json_safe
 
 FORMAT = "automodal-modes"
 VERSION = 1
@@ -45,17 +46,6 @@ def _complex_array(obj: Any, what: str) -> np.ndarray:
     if re.shape != im.shape:
         raise ValueError(f"{what}: 'real' and 'imag' differ in shape")
     return re + 1j * im
-
-
-def _plain(value: Any) -> Any:
-    """JSON fallback for numpy scalars and arrays in the settings."""
-    if isinstance(value, np.generic):
-        return value.item()
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    if isinstance(value, Path):
-        return str(value)
-    raise TypeError(f"cannot write {type(value).__name__} to JSON")
 
 
 def write_modes_json(
@@ -87,7 +77,11 @@ def write_modes_json(
         doc["n_inputs"] = int(modes.residues.shape[2])
         doc["residues"] = _complex_json(modes.residues)
     doc["settings"] = dict(extra or {})
-    text = json.dumps(doc, indent=1, allow_nan=False, default=_plain)
+    non_finite: list[str] = []
+    clean = json_safe(doc, "", non_finite)  # numpy scalars/arrays in the settings too
+    if non_finite:
+        raise ValueError(f"modes file field {non_finite[0]} is not finite")
+    text = json.dumps(clean, indent=1, allow_nan=False)
     with atomic_path(path) as tmp:
         tmp.write_text(text + "\n", encoding="utf-8")
 

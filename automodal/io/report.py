@@ -1,26 +1,25 @@
-"""The identification report, version 1 (``spec/report.md``), as JSON or HDF5.
+"""The identification report, version 1 (``spec/report.md``), as JSON or HDF5 files.
 
-:func:`report_dict` turns a :class:`~automodal.pipeline.Result` and its input into the
-report's plain-JSON content; :func:`write_report` writes it (the suffix of the path chooses
-JSON or HDF5) atomically, so that a failed run leaves no report at all; :func:`read_report`
-reads either format back into the same dict, and :func:`read_report_arrays` the arrays an
-HDF5 report keeps for plotting (every bootstrap pole, the measured and synthesized FRF);
-:func:`format_table` is the table the command line prints.
+The content is the model :class:`~automodal.report_model.Report`; this module makes it for
+a run (:func:`build_report`, which hashes the input file) and writes and reads files:
+:func:`write_report` / :func:`save_report` write it (the suffix of the path chooses JSON or
+HDF5) atomically, so that a failed run leaves no report at all; :func:`read_report` reads
+either format back into the parsed dict and :func:`load_report` into a checked
+:class:`~automodal.report_model.Report` (with the arrays an HDF5 report keeps for plotting,
+:func:`read_report_arrays`); :func:`format_table` is the table the command line prints.
 
-Every number in the dict is a plain Python ``int`` or ``float`` (never a numpy scalar) and
-is finite: a NaN or infinity becomes ``None`` (JSON ``null``) and adds a line to
-``warnings`` naming the field.
+Every number of the content is a plain Python ``int`` or ``float`` (never a numpy scalar)
+and is finite: a NaN or infinity becomes ``None`` (JSON ``null``) and adds a line to
+``warnings`` naming the field (:mod:`automodal.io.json_safe`).
 """
 
 from __future__ import annotations
 
-import datetime as _dt
 import hashlib
 import json
 import math
 import os
-import re
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
@@ -31,12 +30,25 @@ import numpy as np
 from automodal.errors import InputError
 from automodal.frfdata import FRFData
 from automodal.io.atomic import atomic_path
-from automodal.pipeline import IdentifiedMode, PoleTable, Result
+from automodal.result import PoleTable, Result
+from automodal.report_model import (
+    FORMAT_NAME,
+    FORMAT_VERSION,
+    FRFArrays,
+    Report,
+    ReportArrays,
+    ReportMode,
+    frequency_key,
+    utc_now,
+)
 
 __all__ = [
     "FORMAT_NAME",
     "FORMAT_VERSION",
+    "build_report",
+    "file_sha256",
     "format_table",
+    "load_report",
     "read_report",
     "read_report_arrays",
     "report_dict",
@@ -44,19 +56,8 @@ __all__ = [
     "write_report",
 ]
 
-FORMAT_NAME = "automodal-report"
-"""Value of the report's ``format`` key (and of the HDF5 root attribute)."""
-
-FORMAT_VERSION = 1
-"""The report version this module writes, and the newest it reads."""
-
 MAX_FRF_LINES = 2000
 """Most frequency lines of the FRFs kept in an HDF5 report (``/frf``); more are decimated."""
-
-FRFArrays = tuple[np.ndarray, np.ndarray, np.ndarray | None]
-"""``(frequency, measured, synthesized)``: FRFs of the analysed band for the report's plots.
-``frequency`` has shape ``(n,)`` in Hz, ``measured`` and ``synthesized`` (which may be
-``None``) shape ``(n, n_outputs, n_inputs)``."""
 
 _JSON_SUFFIXES = (".json",)
 _HDF5_SUFFIXES = (".h5", ".hdf5")
@@ -82,10 +83,10 @@ class _Refused(Exception):
 # ------------------------------------------------------------------------------ content
 
 
-def report_dict(
+def build_report(
     result: Result, data: FRFData, input_path: str | os.PathLike[str] | None = None
-) -> dict:
-    """The report of one run as plain JSON-compatible Python objects.
+) -> Report:
+    """The report of one run (see :meth:`Report.from_result`), its input file hashed.
 
     Parameters
     ----------
@@ -95,214 +96,62 @@ def report_dict(
         The test that was identified.
     input_path : str or path-like, optional
         The file ``data`` was read from; default ``data.source``. Its bytes are hashed
-        (SHA-256) for ``input.sha256``, which is ``None`` when there is no file.
+        (SHA-256) for ``input.sha256``, which is ``None`` when there is no file (or, with
+        a warning, when it cannot be read).
 
     Returns
     -------
-    dict
-        The keys of ``spec/report.md`` (``format``, ``version``, ``automodal_version``,
-        ``created``, ``input``, ``settings``, ``modes``, ``trashbox``, ``summary``,
-        ``warnings``) plus these additions: ``input.frequency_range_hz`` (span of the whole
-        input, while ``input.band_hz`` is the analysed band), ``settings.orders`` (the
+    Report
+        The keys of ``spec/report.md`` plus these additions: ``input.frequency_range_hz``
+        (span of the whole input, while ``input.band_hz`` is the analysed band),
+        ``input.output_xyz``, ``input.output_directions``, ``input.n_lines_analysed``,
+        ``input.reciprocity``, ``input.mode_shape_channels``, ``settings.orders`` (the
         order scan and the reference order), per mode ``cluster``, ``cluster_dim`` and
         ``features`` (the physicalness features), and ``summary.n_reference_clusters``.
         ``summary.n_clusters`` counts the listed modes (every surviving cluster, a
         near-repeated cluster once per member rank), so that ``n_physical`` of
         ``n_clusters`` compares like with like. Modes are sorted by frequency.
     """
-    warnings = [str(w) for w in result.warnings]
     path = data.source if input_path is None else input_path
-    modes = sorted(result.modes, key=_frequency_key)
-    report = {
-        "format": FORMAT_NAME,
-        "version": FORMAT_VERSION,
-        "automodal_version": str(result.automodal_version),
-        "created": _utc_now(),
-        "input": _input_section(result, data, path, warnings),
-        "settings": {**result.settings, "orders": result.orders},
-        "modes": [_mode_entry(m) for m in modes],
-        "trashbox": {"n_members": result.trashbox_members},
-        "summary": _summary(result),
-        "warnings": warnings,
-    }
-    non_finite: list[str] = []
-    clean = _json_safe(report, "", non_finite)
-    clean["warnings"].extend(_non_finite_warnings(non_finite))
-    return clean
+    warnings: list[str] = []
+    sha = None
+    if path is not None:
+        try:
+            sha = file_sha256(path)
+        except OSError as exc:
+            reason = exc.strerror or type(exc).__name__
+            warnings.append(
+                f"input file {os.fspath(path)} could not be hashed ({reason}): sha256 is null"
+            )
+    return Report.from_result(result, data, path, sha256=sha, created=_utc_now(),
+                              warnings=warnings)
 
 
-def _utc_now() -> str:
-    """The current UTC time as ISO 8601 with seconds and ``Z``."""
-    return _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
+def report_dict(
+    result: Result, data: FRFData, input_path: str | os.PathLike[str] | None = None
+) -> dict:
+    """``build_report(result, data, input_path).to_dict()``: the report's JSON content."""
+    return build_report(result, data, input_path).to_dict()
 
 
-def _frequency_key(mode: IdentifiedMode) -> tuple[bool, float]:
-    """Sort key: by frequency, modes without a finite frequency last."""
-    f = float(mode.frequency_hz)
-    return (not math.isfinite(f), f if math.isfinite(f) else 0.0)
+def file_sha256(path: str | os.PathLike[str]) -> str:
+    """SHA-256 of a file's bytes, read in chunks (as ``input.sha256`` records it).
 
-
-def _input_section(
-    result: Result, data: FRFData, path: str | os.PathLike[str] | None, warnings: list[str]
-) -> dict[str, Any]:
-    """The ``input`` object: where the data came from and what it holds."""
-    freq = np.asarray(data.frequency, dtype=float)
-    return {
-        "path": None if path is None else os.fspath(path),
-        "sha256": _sha256(path, warnings),
-        "n_freq": data.n_freq,
-        "n_outputs": data.n_outputs,
-        "n_inputs": data.n_inputs,
-        "band_hz": list(result.band_hz),
-        "quantity": data.quantity,
-        "output_names": [str(n) for n in data.output_names],
-        "input_names": [str(n) for n in data.input_names],
-        "attributes": dict(data.attributes),
-        "frequency_range_hz": [freq[0], freq[-1]] if freq.size else [],
-        "output_xyz": None if data.output_xyz is None else np.asarray(data.output_xyz, float),
-        "output_directions": (
-            None if data.output_directions is None else [str(d) for d in data.output_directions]
-        ),
-        "n_lines_analysed": int(result.n_lines),
-        "reciprocity": bool(result.reciprocity),
-        "mode_shape_channels": [str(n) for n in (result.shape_channels or data.output_names)],
-    }
-
-
-def _sha256(path: str | os.PathLike[str] | None, warnings: list[str]) -> str | None:
-    """SHA-256 of a file's bytes, read in chunks; ``None`` (with a warning) if unreadable."""
-    if path is None:
-        return None
+    Raises
+    ------
+    OSError
+        If the file cannot be read.
+    """
     digest = hashlib.sha256()
-    try:
-        with open(path, "rb") as fh:
-            for chunk in iter(lambda: fh.read(_HASH_CHUNK), b""):
-                digest.update(chunk)
-    except OSError as exc:
-        reason = exc.strerror or type(exc).__name__
-        warnings.append(
-            f"input file {os.fspath(path)} could not be hashed ({reason}): sha256 is null"
-        )
-        return None
+    with open(path, "rb") as fh:
+        for chunk in iter(lambda: fh.read(_HASH_CHUNK), b""):
+            digest.update(chunk)
     return digest.hexdigest()
 
 
-def _mode_entry(mode: IdentifiedMode) -> dict[str, Any]:
-    """One element of ``modes`` (numbers still unchecked; see :func:`_json_safe`)."""
-    shape, shape_std = _unit_max(mode.mode_shape, mode.mode_shape_std)
-    return {
-        "id": mode.id,
-        "frequency_hz": mode.frequency_hz,
-        "frequency_std_hz": mode.frequency_std_hz,
-        "frequency_ci95_hz": list(mode.frequency_ci95_hz),
-        "damping_ratio": mode.damping_ratio,
-        "damping_std": mode.damping_std,
-        "damping_ci95": list(mode.damping_ci95),
-        "physicalness": mode.physicalness,
-        "physical": bool(mode.physical),
-        "n_members": mode.n_members,
-        "mode_shape": {"real": shape.real, "imag": shape.imag},
-        "mode_shape_std": shape_std,
-        "mpc": mode.mpc,
-        "cluster": mode.cluster,
-        "cluster_dim": mode.cluster_dim,
-        "features": dict(mode.features),
-    }
-
-
-def _unit_max(shape: np.ndarray, shape_std: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Scale a shape so that its largest finite-magnitude entry is exactly ``1 + 0j``.
-
-    The spread is divided by the same magnitude. A shape already in this convention is
-    returned unchanged; an all-zero or all-non-finite one is left as it is.
-    """
-    psi = np.asarray(shape, dtype=complex).ravel()
-    spread = np.asarray(shape_std, dtype=float).ravel()
-    if psi.size == 0:
-        return psi, spread
-    mag = np.abs(psi)
-    k = int(np.argmax(np.where(np.isfinite(mag), mag, -1.0)))
-    if not (np.isfinite(mag[k]) and mag[k] > 0) or psi[k] == 1:
-        return psi, spread
-    psi = psi / psi[k]
-    psi[k] = 1.0
-    return psi, spread / mag[k]
-
-
-def _summary(result: Result) -> dict[str, Any]:
-    """The ``summary`` object (shared by the report and :func:`format_table`)."""
-    return {
-        "n_physical": sum(1 for m in result.modes if m.physical),
-        "n_clusters": len(result.modes),
-        "n_bootstrap": result.settings.get("n_bootstrap"),
-        "runtime_s": result.runtime_s,
-        "n_reference_clusters": result.n_clusters,
-    }
-
-
-def _json_safe(value: Any, where: str, non_finite: list[str]) -> Any:
-    """A copy of ``value`` made of plain JSON types; non-finite numbers become ``None``.
-
-    Parameters
-    ----------
-    value : any
-        Dicts, lists, tuples, arrays, numpy or Python scalars, strings, bytes, paths.
-    where : str
-        The field's path in the report (``modes[2].mode_shape.real[0]``), for warnings.
-    non_finite : list of str
-        Receives the path of every NaN or infinity replaced by ``None``.
-    """
-    if value is None:
-        return None
-    if isinstance(value, (bool, np.bool_)):
-        return bool(value)
-    if isinstance(value, str):
-        return str(value)
-    if isinstance(value, (int, np.integer)):
-        return int(value)
-    if isinstance(value, (float, np.floating)):
-        x = float(value)
-        if math.isfinite(x):
-            return x
-        non_finite.append(where)
-        return None
-    if isinstance(value, (complex, np.complexfloating)):
-        return {
-            "real": _json_safe(value.real, f"{where}.real", non_finite),
-            "imag": _json_safe(value.imag, f"{where}.imag", non_finite),
-        }
-    if isinstance(value, dict):
-        return {
-            str(k): _json_safe(v, f"{where}.{k}" if where else str(k), non_finite)
-            for k, v in value.items()
-        }
-    if isinstance(value, np.ndarray):
-        value = value.tolist()
-    if isinstance(value, (list, tuple)):
-        return [_json_safe(v, f"{where}[{i}]", non_finite) for i, v in enumerate(value)]
-    if isinstance(value, bytes):
-        return value.decode("utf-8", errors="replace")
-    if isinstance(value, os.PathLike):
-        return os.fspath(value)
-    if isinstance(value, np.generic):
-        return _json_safe(value.item(), where, non_finite)
-    return str(value)
-
-
-def _non_finite_warnings(paths: list[str]) -> list[str]:
-    """One warning per field that had non-finite numbers (list elements counted together).
-
-    The words ``NaN`` and ``Infinity`` are avoided so that a scan of the JSON text for them
-    finds none.
-    """
-    counts: dict[str, int] = {}
-    for p in paths:
-        field = re.sub(r"\[\d+\]$", "", p)
-        counts[field] = counts.get(field, 0) + 1
-    return [
-        f"report field {field}: {n} value(s) not finite, written as null"
-        for field, n in counts.items()
-    ]
+def _utc_now() -> str:
+    """The current UTC time as ISO 8601 with seconds and ``Z`` (the report's ``created``)."""
+    return utc_now()
 
 
 # ------------------------------------------------------------------------------ writing
@@ -324,7 +173,7 @@ def write_report(
         layout, with every bootstrap pole under ``/poles``; the whole JSON report is kept
         in the root attribute ``report_json``).
     result, data, input_path
-        As for :func:`report_dict`.
+        As for :func:`build_report`.
     frf : (frequency, measured, synthesized), optional
         The analysed band's measured FRFs and those synthesized from the physical modes
         (``synthesized`` may be ``None``), kept under ``/frf`` of an HDF5 report for the
@@ -343,27 +192,28 @@ def write_report(
     (``None`` left out, ``input.attributes`` as JSON text), ``/modes`` one dataset per
     field with one row per mode (a ``null`` number is NaN there), ``/poles`` every
     bootstrap pole, ``/frf`` the FRFs when given, and the root attribute ``warnings`` the
-    warnings. To write the same report to several files use :func:`report_dict` once and
+    warnings. To write the same report to several files use :func:`build_report` once and
     :func:`save_report` for each.
     """
     _format_of(path)
-    save_report(path, report_dict(result, data, input_path), result.poles, frf)
+    save_report(path, build_report(result, data, input_path), result.poles, frf)
 
 
 def save_report(
     path: str | os.PathLike[str],
-    report: dict,
+    report: Report | Mapping[str, Any],
     poles: PoleTable | None = None,
     frf: FRFArrays | None = None,
 ) -> None:
-    """Write a report dict made by :func:`report_dict`, as JSON or HDF5, atomically.
+    """Write a report, as JSON or HDF5, atomically.
 
     Parameters
     ----------
     path : str or path-like
         ``*.json``, ``*.h5`` or ``*.hdf5``.
-    report : dict
-        The report content (must be finite: NaN is refused with ``ValueError``).
+    report : Report or dict
+        The report (a dict is JSON content written as it is, and must be finite: NaN is
+        refused with ``ValueError``; for HDF5 it must be a valid report).
     poles : PoleTable, optional
         Every bootstrap pole, written under ``/poles`` of an HDF5 report (ignored for JSON).
     frf : (frequency, measured, synthesized), optional
@@ -376,17 +226,21 @@ def save_report(
     Raises
     ------
     InputError
-        For an unknown suffix, before anything is written.
+        For an unknown suffix, or a dict that is not a valid report for HDF5, before
+        anything is written.
     ValueError
         If the arrays of ``frf`` do not fit together (nothing is written).
     """
     kind = _format_of(path)
-    arrays = None if frf is None or kind == "json" else _frf_for_report(report, frf)
+    if kind == "json":
+        content = report.to_dict() if isinstance(report, Report) else report
+        with atomic_path(path) as tmp:
+            _write_json(tmp, content)
+        return
+    model = Report.coerce(report)
+    arrays = None if frf is None else _frf_for_report(model, frf)
     with atomic_path(path) as tmp:
-        if kind == "json":
-            _write_json(tmp, report)
-        else:
-            _write_hdf5(tmp, report, poles, arrays)
+        _write_hdf5(tmp, model, poles, arrays)
 
 
 def _format_of(path: str | os.PathLike[str]) -> str:
@@ -402,14 +256,14 @@ def _format_of(path: str | os.PathLike[str]) -> str:
     )
 
 
-def _write_json(path: Path, report: dict) -> None:
+def _write_json(path: Path, content: Mapping[str, Any]) -> None:
     """The report as indented UTF-8 JSON."""
     with open(path, "w", encoding="utf-8") as fh:
-        json.dump(report, fh, indent=2, ensure_ascii=False, allow_nan=False)
+        json.dump(content, fh, indent=2, ensure_ascii=False, allow_nan=False)
         fh.write("\n")
 
 
-def _frf_for_report(report: dict, frf: FRFArrays) -> dict[str, np.ndarray]:
+def _frf_for_report(report: Report, frf: FRFArrays) -> dict[str, np.ndarray]:
     """The ``/frf`` datasets: checked, cut to the analysed band, decimated.
 
     Raises
@@ -433,7 +287,7 @@ def _frf_for_report(report: dict, frf: FRFArrays) -> dict[str, np.ndarray]:
             f" {arrays['measured'].shape}"
         )
     keep = np.ones(freq.size, dtype=bool)
-    band = report.get("input", {}).get("band_hz") or []
+    band = report.input.band_hz
     if len(band) == 2 and None not in band:
         keep = (freq >= band[0]) & (freq <= band[1])
     lines = np.flatnonzero(keep)
@@ -442,22 +296,22 @@ def _frf_for_report(report: dict, frf: FRFArrays) -> dict[str, np.ndarray]:
 
 
 def _write_hdf5(
-    path: Path, report: dict, poles: PoleTable | None, frf: dict[str, np.ndarray] | None = None
+    path: Path, report: Report, poles: PoleTable | None, frf: dict[str, np.ndarray] | None = None
 ) -> None:
     """The report in the spec's HDF5 layout, plus its JSON text in ``report_json``."""
-    text = json.dumps(report, ensure_ascii=False, allow_nan=False)
+    content = report.to_dict()
+    text = json.dumps(content, ensure_ascii=False, allow_nan=False)
     strings = h5py.string_dtype()
     with h5py.File(path, "w") as f:
-        for key in ("format", "version", "automodal_version", "created"):
-            f.attrs[key] = report[key]
-        f.attrs["settings"] = json.dumps(report["settings"], ensure_ascii=False)
-        f.attrs["warnings"] = np.array(report["warnings"], dtype=strings)
+        for key, value in report.header.to_dict().items():
+            f.attrs[key] = value
+        f.attrs["settings"] = json.dumps(content["settings"], ensure_ascii=False)
+        f.attrs["warnings"] = np.array(report.warnings, dtype=strings)
         f.attrs["report_json"] = text
-        _write_attributes(f.create_group("input"), report["input"])
-        _write_attributes(f.create_group("summary"), report["summary"])
-        _write_attributes(f.create_group("trashbox"), report["trashbox"])
-        n_shape = len(report["input"].get("mode_shape_channels") or report["input"]["output_names"])
-        _write_modes(f.create_group("modes"), report["modes"], n_shape)
+        _write_attributes(f.create_group("input"), content["input"])
+        _write_attributes(f.create_group("summary"), content["summary"])
+        _write_attributes(f.create_group("trashbox"), content["trashbox"])
+        _write_modes(f.create_group("modes"), report.modes, len(report.shape_channels))
         if poles is not None:
             _write_poles(f.create_group("poles"), poles)
         if frf is not None:
@@ -489,25 +343,27 @@ def _floats(values: list[Any]) -> np.ndarray:
     return np.array([np.nan if v is None else v for v in values], dtype=float)
 
 
-def _write_modes(group: h5py.Group, modes: list[dict[str, Any]], n_outputs: int) -> None:
+def _write_modes(group: h5py.Group, modes: list[ReportMode], n_outputs: int) -> None:
     """One dataset per mode field, one row per mode (``mode_shape`` complex)."""
     n = len(modes)
     for key in _MODE_FLOATS:
-        group.create_dataset(key, data=_floats([m[key] for m in modes]))
+        group.create_dataset(key, data=_floats([getattr(m, key) for m in modes]))
     for key in _MODE_INTS:
-        if all(key in m for m in modes):
-            group.create_dataset(key, data=np.array([m[key] for m in modes], dtype=np.int64))
+        if all(getattr(m, key) is not None for m in modes):
+            group.create_dataset(key, data=np.array([getattr(m, key) for m in modes],
+                                                    dtype=np.int64))
     for key in _MODE_PAIRS:
-        group.create_dataset(key, data=_floats([x for m in modes for x in m[key]]).reshape(n, 2))
-    group.create_dataset("physical", data=np.array([m["physical"] for m in modes], dtype=bool))
-    real = _floats([x for m in modes for x in m["mode_shape"]["real"]])
-    imag = _floats([x for m in modes for x in m["mode_shape"]["imag"]])
+        pairs = _floats([x for m in modes for x in getattr(m, key)])
+        group.create_dataset(key, data=pairs.reshape(n, 2))
+    group.create_dataset("physical", data=np.array([m.physical for m in modes], dtype=bool))
+    real = _floats([x for m in modes for x in m.shape_real])
+    imag = _floats([x for m in modes for x in m.shape_imag])
     group.create_dataset("mode_shape", data=(real + 1j * imag).reshape(n, n_outputs))
-    spread = _floats([x for m in modes for x in m["mode_shape_std"]])
+    spread = _floats([x for m in modes for x in m.mode_shape_std])
     group.create_dataset("mode_shape_std", data=spread.reshape(n, n_outputs))
-    names = sorted({k for m in modes for k in m.get("features", {})})
+    names = sorted({k for m in modes for k in m.features or {}})
     for name in names:
-        values = [m.get("features", {}).get(name) for m in modes]
+        values = [(m.features or {}).get(name) for m in modes]
         group.create_dataset(f"features/{name}", data=_floats(values))
 
 
@@ -534,7 +390,8 @@ def read_report(path: str | os.PathLike[str]) -> dict:
     Returns
     -------
     dict
-        The same dict :func:`report_dict` made (an HDF5 report gives its ``report_json``).
+        The parsed JSON content (an HDF5 report gives its ``report_json``); see
+        :func:`load_report` for the checked model.
 
     Raises
     ------
@@ -545,6 +402,33 @@ def read_report(path: str | os.PathLike[str]) -> dict:
     with _reading(path) as p:
         report = _read_hdf5(p) if _is_hdf5_report(p) else _read_json(p)
         _check_header(report)
+    return report
+
+
+def load_report(path: str | os.PathLike[str], arrays: bool = False) -> Report:
+    """Read a report file into a checked :class:`~automodal.report_model.Report`.
+
+    Parameters
+    ----------
+    path : str or path-like
+        As for :func:`read_report`.
+    arrays : bool
+        Also read the poles and FRFs an HDF5 report keeps (``Report.arrays``).
+
+    Raises
+    ------
+    InputError
+        As for :func:`read_report`, and for a report with a missing or malformed field
+        (the message names the file and the field).
+    """
+    content = read_report(path)
+    try:
+        report = Report.from_dict(content)
+    except InputError as exc:
+        raise InputError(exc.problem, os.fspath(path)) from None
+    if arrays:
+        found = read_report_arrays(path)
+        report.arrays = ReportArrays(poles=found["poles"] or None, frf=found["frf"] or None)
     return report
 
 
@@ -687,7 +571,7 @@ def format_table(result: Result) -> str:
             str(m.n_members),
             f"{m.mpc:.3f}",
         ]
-        for m in sorted(result.modes, key=_frequency_key)
+        for m in sorted(result.modes, key=frequency_key)
     ]
     widths = [max(len(r[i]) for r in [header, *rows]) for i in range(len(header))]
     left = {4}
@@ -700,17 +584,18 @@ def format_table(result: Result) -> str:
 
     lines = [line(header), line(["-" * w for w in widths])]
     lines += [line(r) for r in rows] or ["(no mode survived)"]
-    lines.append(_summary_line(_summary(result), result.trashbox_members))
+    lines.append(_summary_line(result))
     return "\n".join(lines)
 
 
-def _summary_line(summary: dict[str, Any], trashbox: int) -> str:
+def _summary_line(result: Result) -> str:
     """``3 physical of 9 clusters; 812 poles in the Trashbox; ...``."""
+    n_bootstrap = result.settings.get("n_bootstrap")
     parts = [
-        f"{summary['n_physical']} physical of {summary['n_clusters']} clusters",
-        f"{trashbox} poles in the Trashbox",
+        f"{len(result.physical_modes)} physical of {len(result.modes)} clusters",
+        f"{result.trashbox_members} poles in the Trashbox",
     ]
-    if summary["n_bootstrap"] is not None:
-        parts.append(f"{summary['n_bootstrap']} bootstrap replicates")
-    parts.append(f"runtime {summary['runtime_s']:.1f} s")
+    if n_bootstrap is not None:
+        parts.append(f"{n_bootstrap} bootstrap replicates")
+    parts.append(f"runtime {result.runtime_s:.1f} s")
     return "; ".join(parts)

@@ -9,7 +9,8 @@ the same input bytes (SHA-256) with the same settings (and the same baseline che
 identified again unless ``force``.
 
 With a baseline report, every file's report gets a ``monitoring`` block
-(:func:`attach_monitoring`, :func:`automodal.core.monitoring.compare_reports`).
+(:func:`automodal.app.monitoring.attach_monitoring`). Each file goes through
+:func:`automodal.app.run.run_file`, the same path as ``automodal identify`` on one file.
 
 No command line here: :mod:`automodal.cli.identify_cmd` is the thin layer over it.
 """
@@ -17,23 +18,25 @@ No command line here: :mod:`automodal.cli.identify_cmd` is the thin layer over i
 from __future__ import annotations
 
 import csv
-import datetime as _dt
 import glob
 import io
 import json
 import os
 import time
-from collections.abc import Callable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 from automodal import __version__
-from automodal.core.monitoring import MonitoringResult, Thresholds, compare_reports, report_time
+from automodal.app.monitoring import Thresholds, baseline_identity
+from automodal.app.run import check_jobs, run_file
 from automodal.errors import InputError
 from automodal.io.atomic import atomic_path
+from automodal.io.json_safe import json_safe
 from automodal.io.readers import READERS
-from automodal.pipeline import Settings
+from automodal.settings import Settings
+from automodal.report_model import Report, utc_now
 
 __all__ = [
     "REPORT_FORMATS",
@@ -42,7 +45,6 @@ __all__ = [
     "SUMMARY_JSON",
     "BatchResult",
     "FileOutcome",
-    "attach_monitoring",
     "expand_inputs",
     "is_batch_input",
     "process_file",
@@ -116,8 +118,8 @@ class FileOutcome:
     runtime_s: float = 0.0
 
     def to_dict(self) -> dict[str, Any]:
-        """Plain-JSON form."""
-        return asdict(self)
+        """Plain-JSON form (see :func:`automodal.io.json_safe.json_safe`)."""
+        return json_safe(asdict(self))
 
 
 @dataclass
@@ -212,57 +214,6 @@ def report_stems(files: Sequence[Path]) -> list[str | None]:
     return out
 
 
-# ------------------------------------------------------------------------------ monitoring
-
-
-def attach_monitoring(
-    report: dict[str, Any],
-    baseline: Mapping[str, Any],
-    baseline_path: str,
-    thresholds: Thresholds | None = None,
-) -> MonitoringResult:
-    """Check a report against a baseline report and add the ``monitoring`` block to it.
-
-    Parameters
-    ----------
-    report : dict
-        The new report (changed in place).
-    baseline : dict
-        The baseline report.
-    baseline_path : str
-        Where the baseline was read from (recorded in the block).
-    thresholds : Thresholds, optional
-
-    Returns
-    -------
-    MonitoringResult
-
-    Raises
-    ------
-    ValueError
-        If the two reports' mode shapes are on different channels.
-
-    Notes
-    -----
-    The block holds ``baseline`` (``path``, ``created``, ``input_sha256``), ``flagged``,
-    ``n_flagged``, ``thresholds`` and ``modes``: one entry per physical baseline mode
-    (``status`` ``ok``, ``changed`` or ``missing``) and one per new physical mode.
-    """
-    result = compare_reports(baseline, report, thresholds)
-    report["monitoring"] = {"baseline": _baseline_identity(baseline, baseline_path),
-                            **result.to_dict()}
-    return result
-
-
-def _baseline_identity(baseline: Mapping[str, Any], path: str) -> dict[str, Any]:
-    """What names a baseline in a monitoring block."""
-    return {
-        "path": str(path),
-        "created": baseline.get("created"),
-        "input_sha256": (baseline.get("input") or {}).get("sha256"),
-    }
-
-
 # ------------------------------------------------------------------------------ one file
 
 
@@ -272,7 +223,7 @@ def process_file(
     outdir: str,
     settings: Settings,
     suffixes: Sequence[str] = (".json",),
-    baseline: Mapping[str, Any] | None = None,
+    baseline: Report | None = None,
     baseline_path: str | None = None,
     thresholds: Thresholds | None = None,
     force: bool = False,
@@ -291,7 +242,7 @@ def process_file(
         Settings of the identification (``jobs`` as the caller wants for this file).
     suffixes : sequence of str
         Report suffixes to write (``.json``, ``.h5``).
-    baseline, baseline_path : dict and str, optional
+    baseline, baseline_path : Report and str, optional
         A baseline report to check against, and where it came from.
     thresholds : Thresholds, optional
     force : bool
@@ -311,119 +262,83 @@ def process_file(
             old = _up_to_date(targets, sha, settings, baseline, baseline_path, thresholds)
             if old is not None:
                 return _outcome(path, "skipped", old, targets, time.perf_counter() - t0)
-        report, result = _identify(path, settings)
-        flagged = False
-        if baseline is not None:
-            try:
-                check = attach_monitoring(report, baseline, baseline_path or "", thresholds)
-            except ValueError as exc:
-                raise InputError(f"cannot be checked against the baseline: {exc}") from None
-            flagged = check.flagged
-        from automodal.io.report import save_report
-
-        for target in targets:
-            save_report(target, report, result.poles, frf=result.frf_fit)
-        return _outcome(path, "flagged" if flagged else "ok", report, targets,
+        run = run_file(path, settings, targets, baseline, baseline_path, thresholds)
+        return _outcome(path, "flagged" if run.flagged else "ok", run.report, targets,
                         time.perf_counter() - t0)
     except InputError as exc:
-        reason = exc.problem
+        reason = exc.problem if exc.path in (None, str(path)) else str(exc)
     except Exception as exc:  # noqa: BLE001 - one bad file must not stop the batch
         msg = " ".join(str(exc).split()) or type(exc).__name__
         reason = f"internal error: {type(exc).__name__}: {msg}"
-    return FileOutcome(file=str(path), status="failed", time=_utc_now(), error=reason,
+    return FileOutcome(file=str(path), status="failed", time=utc_now(), error=reason,
                        runtime_s=time.perf_counter() - t0)
-
-
-def _identify(path: str, settings: Settings) -> tuple[dict[str, Any], Any]:
-    """Read and identify one file; its report dict and the pipeline's result."""
-    from automodal.core.from_time import as_frfdata
-    from automodal.io.readers import read_any
-    from automodal.io.report import report_dict
-    from automodal.pipeline import identify
-
-    data = as_frfdata(read_any(path))
-    result = identify(data, settings)
-    return report_dict(result, data, input_path=path), result
 
 
 def _input_sha256(path: str) -> str:
     """SHA-256 of an input's bytes (as the report records it)."""
-    from automodal.io.report import _sha256
+    from automodal.io.report import file_sha256
 
-    problems: list[str] = []
-    digest = _sha256(path, problems)
-    if digest is None:
+    try:
+        return file_sha256(path)
+    except OSError:
         p = Path(path)
-        raise InputError("no such file" if not p.exists() else "cannot be read", path)
-    return digest
+        raise InputError("no such file" if not p.exists() else "cannot be read", path) from None
 
 
 def _up_to_date(
     targets: Sequence[Path],
     sha: str,
     settings: Settings,
-    baseline: Mapping[str, Any] | None,
+    baseline: Report | None,
     baseline_path: str | None,
     thresholds: Thresholds | None,
-) -> dict[str, Any] | None:
+) -> Report | None:
     """The existing report when every target is there and was made from the same input
     with the same settings (and, with a baseline, checked against the same one with the
     same thresholds); else ``None``."""
-    from automodal.io.report import read_report
+    from automodal.io.report import load_report
 
-    wanted = json.loads(json.dumps(settings.to_dict()))
+    wanted = json_safe(settings.to_dict())
     first = None
     for target in targets:
         if not target.is_file():
             return None
         try:
-            report = read_report(target)
+            report = load_report(target)
         except InputError:
             return None
-        if (report.get("input") or {}).get("sha256") != sha:
+        if report.input.sha256 != sha:
             return None
-        recorded = report.get("settings") or {}
-        if any(recorded.get(k) != v for k, v in wanted.items()):
+        if not report.settings.records(wanted):
             return None
         if baseline is not None:
-            block = report.get("monitoring") or {}
-            same = block.get("baseline") == _baseline_identity(baseline, baseline_path or "")
-            th = (thresholds or Thresholds()).to_dict()
-            if not same or block.get("thresholds") != th:
+            block = report.monitoring
+            if (block is None
+                    or block.baseline != baseline_identity(baseline, baseline_path or "")
+                    or block.thresholds != (thresholds or Thresholds()).to_dict()):
                 return None
         first = first or report
     return first
 
 
 def _outcome(
-    path: str, status: str, report: Mapping[str, Any], targets: Sequence[Path], runtime: float
+    path: str, status: str, report: Report, targets: Sequence[Path], runtime: float
 ) -> FileOutcome:
     """The outcome of an identified (or skipped) file, from its report."""
-    physical = [m for m in report.get("modes") or [] if m.get("physical")]
-    block = report.get("monitoring")
-    test_date = None
-    try:
-        when, source = report_time(report)
-        test_date = when if source == "test_date" else None
-    except ValueError:
-        pass
+    physical = [m for m in report.modes if m.physical]
+    block = report.monitoring
     return FileOutcome(
         file=str(path),
         status=status,
-        time=str(report.get("created") or _utc_now()),
-        test_date=test_date,
+        time=report.created or utc_now(),
+        test_date=report.test_date(),
         reports=[str(t) for t in targets],
         n_physical=len(physical),
-        frequencies_hz=[m.get("frequency_hz") for m in physical],
-        monitoring=None if block is None else ("flagged" if block.get("flagged") else "pass"),
-        flagged_modes=[e["message"] for e in (block or {}).get("modes", []) if e.get("flagged")],
+        frequencies_hz=[m.frequency_hz for m in physical],
+        monitoring=None if block is None else ("flagged" if block.flagged else "pass"),
+        flagged_modes=[] if block is None else block.flagged_messages,
         runtime_s=round(runtime, 3),
     )
-
-
-def _utc_now() -> str:
-    """The current UTC time as ISO 8601 with seconds and ``Z``."""
-    return _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
 
 
 # ------------------------------------------------------------------------------ the batch
@@ -434,7 +349,7 @@ def run_batch(
     outdir: str | os.PathLike[str],
     settings: Settings | None = None,
     formats: str = "json",
-    baseline: Mapping[str, Any] | None = None,
+    baseline: Report | None = None,
     baseline_path: str | None = None,
     thresholds: Thresholds | None = None,
     force: bool = False,
@@ -455,13 +370,13 @@ def run_batch(
         Settings of every identification; its ``jobs`` is ignored (see ``jobs``).
     formats : {"json", "h5", "both"}
         Report files per input: ``<stem>.json``, ``<stem>.h5`` or both.
-    baseline, baseline_path : dict and str, optional
+    baseline, baseline_path : Report and str, optional
         Check every report against this baseline report.
     thresholds : Thresholds, optional
     force : bool
         Identify files whose up-to-date reports exist.
     jobs : int, optional
-        Worker processes (default: all cores). With more than one file and more than one
+        Worker processes, >= 1 (default ``None``: all cores). With more than one file and more than one
         worker, files run in parallel and each file's bootstrap in one process; otherwise
         files run one after the other, each bootstrap with ``jobs`` processes.
     scheduler_address : str, optional
@@ -479,11 +394,12 @@ def run_batch(
     Raises
     ------
     InputError
-        For an unknown ``formats``, an output folder that cannot be made, or a Dask
+        For an unknown ``formats``, ``jobs`` below 1, an output folder that cannot be made, or a Dask
         scheduler that cannot be used.
     """
     if formats not in REPORT_FORMATS:
         raise InputError(f"unknown report format {formats!r}: use json, h5 or both")
+    check_jobs(jobs)
     out = Path(outdir)
     try:
         out.mkdir(parents=True, exist_ok=True)
@@ -558,28 +474,28 @@ def _summary(
     outdir: Path,
     settings: Settings,
     formats: str,
-    baseline: Mapping[str, Any] | None,
+    baseline: Report | None,
     baseline_path: str | None,
     thresholds: Thresholds | None,
 ) -> dict[str, Any]:
-    """The content of ``summary.json``."""
-    return {
+    """The content of ``summary.json`` (plain JSON, see :mod:`automodal.io.json_safe`)."""
+    return json_safe({
         "format": SUMMARY_FORMAT,
         "version": 1,
         "automodal_version": __version__,
-        "created": _utc_now(),
+        "created": utc_now(),
         "input": spec,
         "outdir": str(outdir),
-        "settings": json.loads(json.dumps(settings.to_dict())),
+        "settings": settings.to_dict(),
         "report_formats": list(REPORT_FORMATS[formats]),
         "baseline": None if baseline is None else {
-            **_baseline_identity(baseline, baseline_path or ""),
+            **baseline_identity(baseline, baseline_path or ""),
             "thresholds": (thresholds or Thresholds()).to_dict(),
         },
         "counts": {"files": len(outcomes), **{s: sum(o.status == s for o in outcomes)
                                                for s in STATUSES}},
         "files": [o.to_dict() for o in outcomes],
-    }
+    })
 
 
 def _csv_text(outcomes: list[FileOutcome]) -> str:

@@ -1,9 +1,9 @@
 """Figures of an identification report: pole map, FRF fit, physicalness and mode shapes.
 
-Pure plotting: every function takes a report dict (what
-:func:`automodal.io.report.report_dict` or :func:`~automodal.io.report.read_report` gives)
-and, where it needs them, the arrays an HDF5 report keeps
-(:func:`~automodal.io.report.read_report_arrays`), and returns a
+Pure plotting: every function takes a report (a :class:`~automodal.report_model.Report`,
+or a report dict, which is checked into one by :meth:`Report.coerce
+<automodal.report_model.Report.coerce>`) and, where it needs them, the arrays an HDF5
+report keeps (:func:`~automodal.io.report.read_report_arrays`), and returns a
 :class:`matplotlib.figure.Figure`. Nothing here reads a file or identifies anything.
 
 Matplotlib is imported inside the functions only (so that importing :mod:`automodal`
@@ -20,17 +20,23 @@ from __future__ import annotations
 import math
 import os
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from automodal.report_model import Report, ReportMode
+
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure, SubFigure
 
-    from automodal.core.monitoring import History
-    from automodal.pipeline import PoleTable
+    from automodal.app.monitoring import History
+    from automodal.result import PoleTable
+
+ReportLike = Report | Mapping[str, Any]
+"""A :class:`~automodal.report_model.Report` or a report dict."""
 
 __all__ = [
     "FIGURE_NAMES",
@@ -71,7 +77,7 @@ _DIRECTIONS = {"X": (1.0, 0.0, 0.0), "Y": (0.0, 1.0, 0.0), "Z": (0.0, 0.0, 1.0)}
 
 
 def pole_map(
-    report: Mapping[str, Any],
+    report: ReportLike,
     poles: PoleTable | Mapping[str, np.ndarray],
     frf: Mapping[str, np.ndarray] | Sequence[np.ndarray] | None = None,
     *,
@@ -81,7 +87,7 @@ def pole_map(
 
     Parameters
     ----------
-    report : dict
+    report : Report or dict
         The report (its ``modes``, ``input.band_hz`` and ``summary`` are used).
     poles : PoleTable or dict
         Every bootstrap pole: ``frequency_hz``, ``cluster`` (``-1`` for the Trashbox) and
@@ -100,6 +106,7 @@ def pole_map(
         its own colour (``gid="cluster-<id>"``), physical clusters large and labelled with
         their frequencies.
     """
+    report = Report.coerce(report)
     fig = _canvas(fig, (11.0, 4.5))
     ax = fig.add_subplot()
     cols = _pole_columns(poles)
@@ -111,7 +118,7 @@ def pole_map(
     colors = _cluster_colors(by_cluster, np.unique(cluster[~trash]))
     for c, color in colors.items():
         sel = cluster == c
-        physical = by_cluster.get(c, {}).get("physical", False)
+        physical = by_cluster.get(c, _NO_CLUSTER).physical
         style = (
             {"s": 14, "marker": "o", "linewidths": 0, "zorder": 3}
             if physical
@@ -123,10 +130,10 @@ def pole_map(
     ax.set_xlim(*_band(report, freq))
     ax.set_xlabel("frequency (Hz)")
     ax.set_ylabel("bootstrap replicate")
-    for mode in _physical_modes(report):
-        color = colors.get(mode.get("cluster"), PHYSICAL_COLOR)
-        ax.axvline(mode["frequency_hz"], color=color, lw=0.6, ls=":", zorder=0)
-        ax.text(mode["frequency_hz"], 0.985, _hz(mode["frequency_hz"]), color=color,
+    for mode in report.physical_modes:
+        color = colors.get(mode.cluster, PHYSICAL_COLOR)
+        ax.axvline(mode.frequency_hz, color=color, lw=0.6, ls=":", zorder=0)
+        ax.text(mode.frequency_hz, 0.985, _hz(mode.frequency_hz), color=color,
                 rotation=90, ha="center", va="top", fontsize=7, gid="mode-label",
                 transform=ax.get_xaxis_transform(),
                 bbox={"boxstyle": "square,pad=0.1", "fc": "white", "ec": "none", "alpha": 0.8})
@@ -136,18 +143,18 @@ def pole_map(
         handles.append(_draw_frf_sum(ax, parts[0], parts[1]))
     ax.legend(handles=handles, loc="lower left", bbox_to_anchor=(0.0, 1.0), ncol=len(handles),
               frameon=False, fontsize=8, borderaxespad=0.2)
-    summary = report.get("summary", {})
+    summary = report.summary
     n_trash = int(np.count_nonzero(trash))
     fig.suptitle(
-        f"Bootstrap poles: {summary.get('n_clusters', len(colors))} clusters,"
-        f" {summary.get('n_physical', 0)} physical, {n_trash} poles in the Trashbox",
+        f"Bootstrap poles: {summary.n_clusters} clusters,"
+        f" {summary.n_physical} physical, {n_trash} poles in the Trashbox",
         fontsize=10,
     )
     return fig
 
 
 def frf_fit(
-    report: Mapping[str, Any],
+    report: ReportLike,
     frequency: np.ndarray,
     frf_measured: np.ndarray,
     frf_synth: np.ndarray | None,
@@ -159,7 +166,7 @@ def frf_fit(
 
     Parameters
     ----------
-    report : dict
+    report : Report or dict
         The report (channel names, quantity, band, physical modes).
     frequency : ndarray, shape (n,)
         Frequency lines in Hz.
@@ -178,6 +185,7 @@ def frf_fit(
         Two axes sharing x: magnitude (logarithmic) above, phase in degrees below.
         Measured lines are solid, synthesized ones dashed in the same colour.
     """
+    report = Report.coerce(report)
     fig = _canvas(fig, (10.0, 6.0))
     ax_mag, ax_ph = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": [2, 1]})
     f = np.asarray(frequency, dtype=float)
@@ -194,10 +202,10 @@ def frf_fit(
             ax_ph.plot(*_wrapped_phase(f, S[:, i, j]), color=color, lw=1.3, ls="--",
                        gid="synthesized")
     ax_mag.set_yscale("log")
-    for mode in _physical_modes(report):
+    for mode in report.physical_modes:
         for ax in (ax_mag, ax_ph):
-            ax.axvline(mode["frequency_hz"], color="0.75", lw=0.6, ls=":", zorder=0)
-    kind = _QUANTITY_FRF.get(str(report.get("input", {}).get("quantity")), "FRF")
+            ax.axvline(mode.frequency_hz, color="0.75", lw=0.6, ls=":", zorder=0)
+    kind = _QUANTITY_FRF.get(report.input.quantity, "FRF")
     ax_mag.set_ylabel(f"|H| ({kind})")
     ax_ph.set_ylabel("phase (°)")
     ax_ph.set_ylim(-190, 190)
@@ -215,13 +223,13 @@ def frf_fit(
 
 
 def physicalness_bars(
-    report: Mapping[str, Any], *, fig: Figure | SubFigure | None = None
+    report: ReportLike, *, fig: Figure | SubFigure | None = None
 ) -> Figure | SubFigure:
     """One bar per cluster at its frequency, as high as its physicalness.
 
     Parameters
     ----------
-    report : dict
+    report : Report or dict
         The report (its ``modes``, ``settings.min_physicalness`` and band).
     fig : Figure or SubFigure, optional
         Where to draw; default a new figure.
@@ -233,16 +241,17 @@ def physicalness_bars(
         ``"not-physical"``), the decision threshold as a dashed line, and the 95 %
         frequency interval of each cluster as a horizontal error bar at the top of its bar.
     """
+    report = Report.coerce(report)
     fig = _canvas(fig, (10.0, 3.5))
     ax = fig.add_subplot()
-    modes = [m for m in report.get("modes", []) if _finite(m.get("frequency_hz"))]
-    threshold = float(report.get("settings", {}).get("min_physicalness", 0.5) or 0.5)
-    lo, hi = _band(report, np.array([m["frequency_hz"] for m in modes], dtype=float))
+    modes = [m for m in report.modes if m.has_frequency]
+    threshold = report.settings.min_physicalness
+    lo, hi = _band(report, np.array([m.frequency_hz for m in modes], dtype=float))
     width = (hi - lo) / 250.0
     for physical, color in ((True, PHYSICAL_COLOR), (False, NON_PHYSICAL_COLOR)):
-        group = [m for m in modes if bool(m.get("physical")) is physical]
-        f = np.array([m["frequency_hz"] for m in group], dtype=float)
-        p = np.array([m.get("physicalness") or 0.0 for m in group], dtype=float)
+        group = [m for m in modes if m.physical is physical]
+        f = np.array([m.frequency_hz for m in group], dtype=float)
+        p = np.array([m.physicalness or 0.0 for m in group], dtype=float)
         label = "physical" if physical else "not physical"
         ax.bar(f, p, width=width, color=color, label=f"{label} ({len(group)})",
                gid=label.replace(" ", "-"))
@@ -263,7 +272,7 @@ def physicalness_bars(
 
 
 def mode_shapes(
-    report: Mapping[str, Any],
+    report: ReportLike,
     xyz: np.ndarray | None = None,
     *,
     max_columns: int = 4,
@@ -273,7 +282,7 @@ def mode_shapes(
 
     Parameters
     ----------
-    report : dict
+    report : Report or dict
         The report (its physical ``modes``, ``input.output_names``, and
         ``input.output_xyz``/``input.output_directions`` when ``xyz`` is not given).
     xyz : ndarray, shape (n_outputs, 3), optional
@@ -291,12 +300,15 @@ def mode_shapes(
     Figure or SubFigure
         One axes per physical mode (a single axes with a note when there is none).
     """
-    modes = _physical_modes(report)
-    inp = report.get("input", {})
-    directions = inp.get("output_directions")
-    if xyz is None and inp.get("output_xyz") is not None and not inp.get("reciprocity"):
-        rows = _shape_outputs(inp, len(inp["output_xyz"]))  # outputs the run kept
-        xyz = np.array(inp["output_xyz"], dtype=float)[rows]
+    report = Report.coerce(report)
+    modes = report.physical_modes
+    inp = report.input
+    directions = inp.output_directions
+    if xyz is None and inp.output_xyz is not None and not inp.reciprocity:
+        n_xyz = len(inp.output_xyz)
+        rows = (report.shape_output_indices() if n_xyz == len(inp.output_names)
+                else list(range(n_xyz)))  # outputs the run kept
+        xyz = _floats(inp.output_xyz)[rows]
         directions = None if directions is None else [directions[i] for i in rows
                                                       if i < len(directions)]
     geometry = xyz is not None
@@ -320,9 +332,9 @@ def mode_shapes(
         else:
             ax = fig.add_subplot(n_rows, n_cols, k + 1)
             _draw_shape_bars(ax, shape, _shape_channel_names(report, shape.size), k == 0)
-        zeta = mode.get("damping_ratio")
-        damping = f", ζ {100 * zeta:.2f} %" if _finite(zeta) else ""
-        ax.set_title(f"mode {mode.get('id', k + 1)}: {_hz(mode['frequency_hz'])}{damping}",
+        zeta = mode.damping_ratio
+        damping = f", ζ {100 * zeta:.2f} %" if zeta is not None else ""
+        ax.set_title(f"mode {mode.id}: {_hz(mode.frequency_hz)}{damping}",
                      fontsize=8)
     how = "real part on the sensor geometry" if geometry else "real part and magnitude by channel"
     fig.suptitle(f"Shapes of the physical modes ({how})", fontsize=10)
@@ -330,7 +342,7 @@ def mode_shapes(
 
 
 def overview(
-    report: Mapping[str, Any],
+    report: ReportLike,
     poles: PoleTable | Mapping[str, np.ndarray] | None = None,
     frf: Mapping[str, np.ndarray] | Sequence[np.ndarray] | None = None,
     xyz: np.ndarray | None = None,
@@ -339,7 +351,7 @@ def overview(
 
     Parameters
     ----------
-    report : dict
+    report : Report or dict
         The report.
     poles : PoleTable or dict, optional
         Every bootstrap pole; without them (or with none) there is no pole map.
@@ -356,9 +368,10 @@ def overview(
     """
     from matplotlib.figure import Figure
 
+    report = Report.coerce(report)
     has_poles = poles is not None and _pole_columns(poles)["frequency_hz"].size > 0
     parts = _frf_parts(frf)
-    n_shapes = max(1, len(_physical_modes(report)))
+    n_shapes = max(1, len(report.physical_modes))
     columns = min(n_shapes, OVERVIEW_SHAPE_COLUMNS)
     heights = ([4.6] if has_poles else []) + [4.6] + [2.5 * math.ceil(n_shapes / columns) + 0.6]
     fig = Figure(figsize=(15.0, sum(heights)), layout="constrained")
@@ -382,7 +395,7 @@ def trend(history: History, *, fig: Figure | SubFigure | None = None) -> Figure 
     Parameters
     ----------
     history : History
-        What :func:`automodal.core.monitoring.build_history` made (or
+        What :func:`automodal.app.monitoring.build_history` made (or
         :func:`automodal.io.history.read_history` read).
     fig : Figure or SubFigure, optional
         Where to draw; default a new figure.
@@ -476,7 +489,7 @@ def save_figure(fig: Figure, path: str | os.PathLike[str], dpi: int = 150) -> Pa
 
 
 def save_figures(
-    report: Mapping[str, Any],
+    report: ReportLike,
     arrays: Mapping[str, Any] | None,
     folder: str | os.PathLike[str],
     dpi: int = 150,
@@ -485,12 +498,12 @@ def save_figures(
 
     Parameters
     ----------
-    report : dict
+    report : Report or dict
         The report.
     arrays : dict, optional
         ``{"poles": PoleTable or dict, "frf": dict or (f, measured, synthesized)}``, as
         :func:`automodal.io.report.read_report_arrays` gives (either may be missing or
-        empty).
+        empty); default the report's own ``arrays``.
     folder : str or path-like
         Created when missing.
     dpi : int
@@ -503,7 +516,9 @@ def save_figures(
         ``poles.png`` (with poles), ``frf_fit.png`` (with FRFs), ``physicalness.png`` and
         ``mode_shapes.png``.
     """
-    arrays = arrays or {}
+    report = Report.coerce(report)
+    if arrays is None:
+        arrays = {"poles": report.arrays.poles, "frf": report.arrays.frf}
     poles = arrays.get("poles")
     if poles is not None and _pole_columns(poles)["frequency_hz"].size == 0:
         poles = None
@@ -677,34 +692,42 @@ def _frf_parts(
     return np.asarray(freq, dtype=float), np.asarray(measured), synth
 
 
-def _clusters(report: Mapping[str, Any]) -> dict[int, dict[str, Any]]:
+@dataclass
+class _Cluster:
+    """Whether any mode of a cluster is physical, and its lowest finite frequency."""
+
+    physical: bool = False
+    frequency_hz: float = math.inf
+
+
+_NO_CLUSTER = _Cluster()
+
+
+def _clusters(report: Report) -> dict[int, _Cluster]:
     """Cluster id -> whether any of its modes is physical, and the lowest frequency."""
-    out: dict[int, dict[str, Any]] = {}
-    for mode in report.get("modes", []):
-        c = mode.get("cluster")
-        if c is None:
+    out: dict[int, _Cluster] = {}
+    for mode in report.modes:
+        if mode.cluster is None:
             continue
-        entry = out.setdefault(int(c), {"physical": False, "frequency_hz": math.inf})
-        entry["physical"] |= bool(mode.get("physical"))
-        if _finite(mode.get("frequency_hz")):
-            entry["frequency_hz"] = min(entry["frequency_hz"], float(mode["frequency_hz"]))
+        entry = out.setdefault(mode.cluster, _Cluster())
+        entry.physical |= mode.physical
+        if mode.has_frequency:
+            entry.frequency_hz = min(entry.frequency_hz, float(mode.frequency_hz))
     return out
 
 
-def _cluster_colors(
-    by_cluster: Mapping[int, Mapping[str, Any]], present: np.ndarray
-) -> dict[int, Any]:
+def _cluster_colors(by_cluster: Mapping[int, _Cluster], present: np.ndarray) -> dict[int, Any]:
     """A colour per cluster in frequency order: tab10 for physical clusters, light tab20 else."""
     from matplotlib import colormaps
 
     strong = colormaps["tab10"].colors
     muted = colormaps["tab20"].colors[1::2]
     order = sorted((int(c) for c in present),
-                   key=lambda c: by_cluster.get(c, {}).get("frequency_hz", math.inf))
+                   key=lambda c: by_cluster.get(c, _NO_CLUSTER).frequency_hz)
     colors: dict[int, Any] = {}
     n_phys = n_other = 0
     for c in order:
-        if by_cluster.get(c, {}).get("physical", False):
+        if by_cluster.get(c, _NO_CLUSTER).physical:
             colors[c] = strong[n_phys % len(strong)]
             n_phys += 1
         else:
@@ -713,30 +736,14 @@ def _cluster_colors(
     return colors
 
 
-def _physical_modes(report: Mapping[str, Any]) -> list[Mapping[str, Any]]:
-    """The physical modes with a finite frequency, by frequency."""
-    modes = [m for m in report.get("modes", [])
-             if m.get("physical") and _finite(m.get("frequency_hz"))]
-    return sorted(modes, key=lambda m: m["frequency_hz"])
-
-
-def _shape(mode: Mapping[str, Any]) -> np.ndarray:
+def _shape(mode: ReportMode) -> np.ndarray:
     """A mode's shape as a complex array (``null`` entries as 0)."""
-    shape = mode.get("mode_shape") or {}
-    real = np.array([v if v is not None else 0.0 for v in shape.get("real", [])], dtype=float)
-    imag = np.array([v if v is not None else 0.0 for v in shape.get("imag", [])], dtype=float)
-    return real + 1j * imag
+    return np.nan_to_num(mode.shape, nan=0.0)
 
 
-def _shape_outputs(inp: Mapping[str, Any], n: int) -> list[int]:
-    """Indices of the ``n`` outputs that the mode shapes cover: those named in
-    ``mode_shape_channels`` when the run left some out (dead or identical channels, see
-    :mod:`automodal.core.checks`), else all."""
-    names = [str(s) for s in inp.get("output_names") or []]
-    kept = [str(s) for s in inp.get("mode_shape_channels") or []]
-    if len(names) == n and 0 < len(kept) < n and all(k in names for k in kept):
-        return [names.index(k) for k in kept]
-    return list(range(n))
+def _floats(values: Sequence[Any]) -> np.ndarray:
+    """A float array from nested JSON numbers, ``None`` as NaN."""
+    return np.array([[np.nan if v is None else v for v in row] for row in values], dtype=float)
 
 
 def _direction_vectors(directions: Sequence[str] | None, n: int) -> np.ndarray:
@@ -750,21 +757,20 @@ def _direction_vectors(directions: Sequence[str] | None, n: int) -> np.ndarray:
     return out
 
 
-def _channel_names(report: Mapping[str, Any], ny: int, nu: int) -> tuple[list[str], list[str]]:
+def _channel_names(report: Report, ny: int, nu: int) -> tuple[list[str], list[str]]:
     """Output and input names from the report, ``y1..``/``u1..`` where they are missing."""
-    inp = report.get("input", {})
 
-    def names(key: str, n: int, prefix: str) -> list[str]:
-        given = [str(s) for s in inp.get(key) or []]
+    def names(given: list[str], n: int, prefix: str) -> list[str]:
         return given[:n] if len(given) >= n else [f"{prefix}{i + 1}" for i in range(n)]
 
-    return names("output_names", ny, "y"), names("input_names", nu, "u")
+    return (names(report.input.output_names, ny, "y"),
+            names(report.input.input_names, nu, "u"))
 
 
-def _shape_channel_names(report: Mapping[str, Any], n: int) -> list[str]:
-    """Names of the mode-shape entries: ``input.mode_shape_channels`` (the inputs when the
-    run used reciprocity), else the output names."""
-    given = [str(s) for s in report.get("input", {}).get("mode_shape_channels") or []]
+def _shape_channel_names(report: Report, n: int) -> list[str]:
+    """Names of the mode-shape entries (:attr:`Report.shape_channels`), ``y1..`` when the
+    report names fewer than ``n``."""
+    given = report.shape_channels
     return given[:n] if len(given) >= n else _channel_names(report, n, 0)[0]
 
 
@@ -782,21 +788,21 @@ def _wrapped_phase(f: np.ndarray, h: np.ndarray) -> tuple[np.ndarray, np.ndarray
     return np.insert(f, jumps, np.nan), np.insert(deg, jumps, np.nan)
 
 
-def _ci_halfwidths(modes: list[Mapping[str, Any]], f: np.ndarray) -> np.ndarray:
+def _ci_halfwidths(modes: list[ReportMode], f: np.ndarray) -> np.ndarray:
     """``(2, n)`` distances from each frequency to the ends of its 95 % interval."""
     out = np.zeros((2, len(modes)))
     for k, mode in enumerate(modes):
-        ci = mode.get("frequency_ci95_hz") or [None, None]
-        if len(ci) == 2 and _finite(ci[0]) and _finite(ci[1]):
-            out[:, k] = max(0.0, f[k] - ci[0]), max(0.0, ci[1] - f[k])
+        lo, hi = mode.frequency_ci95_hz
+        if lo is not None and hi is not None:
+            out[:, k] = max(0.0, f[k] - lo), max(0.0, hi - f[k])
     return out
 
 
-def _band(report: Mapping[str, Any], freq: np.ndarray) -> tuple[float, float]:
+def _band(report: Report, freq: np.ndarray) -> tuple[float, float]:
     """The analysed band from the report, else the span of ``freq``, else (0, 1)."""
-    band = report.get("input", {}).get("band_hz") or []
-    if len(band) == 2 and _finite(band[0]) and _finite(band[1]) and band[1] > band[0]:
-        return float(band[0]), float(band[1])
+    band = report.band_hz
+    if band is not None:
+        return band
     finite = freq[np.isfinite(freq)] if freq.size else freq
     if finite.size and finite.max() > finite.min():
         return float(finite.min()), float(finite.max())
@@ -806,8 +812,3 @@ def _band(report: Mapping[str, Any], freq: np.ndarray) -> tuple[float, float]:
 def _hz(f: float) -> str:
     """A frequency with four significant digits, e.g. ``9.597 Hz``."""
     return f"{f:.4g} Hz"
-
-
-def _finite(x: Any) -> bool:
-    """Whether ``x`` is a finite real number (not a bool, not None)."""
-    return isinstance(x, (int, float, np.number)) and not isinstance(x, bool) and math.isfinite(x)

@@ -1,9 +1,10 @@
 """Monitoring: today's modes against a baseline's, and modes tracked over time.
 
-Pure functions on the modes of two identifications (no I/O). :func:`compare` matches the
-physical modes of a new run to those of a baseline run by frequency and mode shape (a
-Hungarian assignment on a cost that adds the relative frequency distance to ``1 - MAC``)
-and flags a baseline mode
+The application side of monitoring: reports (:class:`~automodal.report_model.Report`) in,
+verdicts, messages, monitoring blocks and histories out (only :func:`history_of_files`
+reads files). The numerical matching is :mod:`automodal.core.matching`. :func:`compare` matches the physical modes of a new run to
+those of a baseline run by frequency and mode shape (a Hungarian assignment on a cost that
+adds the relative frequency distance to ``1 - MAC``) and flags a baseline mode
 
 * whose frequency moved by more than ``max(k_sigma * s, min_relative_shift * f_baseline)``,
   with ``s = sqrt(s_baseline^2 + s_today^2)`` the two bootstrap standard deviations combined;
@@ -44,25 +45,22 @@ from typing import Any
 
 import numpy as np
 
+from automodal.core.matching import ModeTable, cluster_mac, match
+from automodal.io.json_safe import json_safe
+from automodal.report_model import MonitoringBlock, Report
+
 __all__ = [
-    "DATE_KEYS",
     "History",
     "ModeCheck",
-    "ModeTable",
     "MonitoringResult",
     "Thresholds",
+    "attach_monitoring",
+    "baseline_identity",
     "build_history",
     "compare",
     "compare_reports",
-    "mode_table",
-    "report_time",
+    "history_of_files",
 ]
-
-DATE_KEYS = ("test_date", "date", "datetime", "timestamp")
-"""Keys of a report's ``input.attributes`` read as the test's date (ISO 8601), in order."""
-
-_INADMISSIBLE = 1e6
-"""Cost of a pair outside the matching gate (never chosen over an admissible one)."""
 
 
 @dataclass(frozen=True)
@@ -113,51 +111,6 @@ class Thresholds:
 
 
 @dataclass
-class ModeTable:
-    """The modes of one identification, as arrays (one entry per mode).
-
-    Attributes
-    ----------
-    ids : ndarray of int
-        Mode ids of the report.
-    frequency_hz, frequency_std_hz : ndarray of float
-        Central frequency and bootstrap standard deviation (NaN when unknown).
-    frequency_ci95_hz : ndarray, shape (n, 2)
-        Bootstrap 95 % interval of the frequency.
-    damping_ratio, damping_std : ndarray of float
-        Central damping ratio and bootstrap standard deviation.
-    damping_ci95 : ndarray, shape (n, 2)
-        Bootstrap 95 % interval of the damping ratio.
-    physical : ndarray of bool
-        The tool's decision.
-    shapes : ndarray, shape (n, n_channels), complex
-        Mode shapes (NaN where unknown; ``n_channels`` may be 0).
-    cluster : ndarray of int
-        Cluster of each mode; the members of a near-repeated cluster share it.
-    """
-
-    ids: np.ndarray
-    frequency_hz: np.ndarray
-    frequency_std_hz: np.ndarray
-    frequency_ci95_hz: np.ndarray
-    damping_ratio: np.ndarray
-    damping_std: np.ndarray
-    damping_ci95: np.ndarray
-    physical: np.ndarray
-    shapes: np.ndarray
-    cluster: np.ndarray
-
-    @property
-    def n_modes(self) -> int:
-        """Number of modes."""
-        return int(self.ids.size)
-
-    def subset(self, index: np.ndarray) -> ModeTable:
-        """The modes at ``index`` (an integer or boolean index)."""
-        return ModeTable(**{name: getattr(self, name)[index] for name in self.__dataclass_fields__})
-
-
-@dataclass
 class ModeCheck:
     """The verdict on one mode of the baseline (or one new mode of today).
 
@@ -205,9 +158,10 @@ class ModeCheck:
     damping_ratio: float | None = None
     message: str = ""
 
-    def to_dict(self) -> dict[str, Any]:
-        """Plain-JSON form (non-finite numbers as ``None``)."""
-        return {k: _plain(v) for k, v in asdict(self).items()}
+    def to_dict(self, non_finite: list[str] | None = None, where: str = "") -> dict[str, Any]:
+        """Plain-JSON form (non-finite numbers as ``None``, their fields added to
+        ``non_finite``; see :func:`automodal.io.json_safe.json_safe`)."""
+        return json_safe(asdict(self), where, non_finite)
 
 
 @dataclass
@@ -233,87 +187,17 @@ class MonitoringResult:
         """The entries that raise the alarm."""
         return [e for e in self.entries if e.flagged]
 
-    def to_dict(self) -> dict[str, Any]:
-        """Plain-JSON form: ``flagged``, ``n_flagged``, ``thresholds`` and ``modes``."""
+    def to_dict(self, non_finite: list[str] | None = None, where: str = "") -> dict[str, Any]:
+        """Plain-JSON form: ``flagged``, ``n_flagged``, ``thresholds`` and ``modes``
+        (non-finite numbers as ``None``, their fields added to ``non_finite``)."""
+        prefix = f"{where}." if where else ""
         return {
             "flagged": bool(self.flagged),
             "n_flagged": len(self.flagged_entries),
             "thresholds": self.thresholds.to_dict(),
-            "modes": [e.to_dict() for e in self.entries],
+            "modes": [e.to_dict(non_finite, f"{prefix}modes[{i}]")
+                      for i, e in enumerate(self.entries)],
         }
-
-
-# ------------------------------------------------------------------------------ reading dicts
-
-
-def mode_table(modes: Sequence[Mapping[str, Any]]) -> ModeTable:
-    """The ``modes`` list of a report (``spec/report.md``) as a :class:`ModeTable`.
-
-    Parameters
-    ----------
-    modes : sequence of dict
-        Report mode entries; ``null`` numbers become NaN, a missing ``cluster`` gives each
-        mode its own, a missing or ragged ``mode_shape`` gives shapes of NaN.
-
-    Returns
-    -------
-    ModeTable
-    """
-    n = len(modes)
-
-    def numbers(key: str) -> np.ndarray:
-        return np.array([_number(m.get(key)) for m in modes], dtype=float)
-
-    def pairs(key: str) -> np.ndarray:
-        out = np.full((n, 2), np.nan)
-        for i, m in enumerate(modes):
-            value = m.get(key)
-            if isinstance(value, (list, tuple)) and len(value) == 2:
-                out[i] = [_number(value[0]), _number(value[1])]
-        return out
-
-    shapes = [_shape(m.get("mode_shape")) for m in modes]
-    widths = {s.size for s in shapes}
-    width = widths.pop() if len(widths) == 1 else 0
-    shape_array = (
-        np.vstack(shapes).astype(complex) if n and width else np.full((n, 0), np.nan, complex)
-    )
-    ids = np.array([int(m.get("id", i + 1)) for i, m in enumerate(modes)], dtype=int)
-    clusters = [m.get("cluster") for m in modes]
-    if any(c is None for c in clusters):
-        cluster = -1 - np.arange(n)
-    else:
-        cluster = np.array(clusters, dtype=int)
-    return ModeTable(
-        ids=ids,
-        frequency_hz=numbers("frequency_hz"),
-        frequency_std_hz=numbers("frequency_std_hz"),
-        frequency_ci95_hz=pairs("frequency_ci95_hz"),
-        damping_ratio=numbers("damping_ratio"),
-        damping_std=numbers("damping_std"),
-        damping_ci95=pairs("damping_ci95"),
-        physical=np.array([bool(m.get("physical")) for m in modes], dtype=bool),
-        shapes=shape_array,
-        cluster=cluster.reshape(n),
-    )
-
-
-def _number(value: Any) -> float:
-    """A JSON number as float; ``None`` or anything else as NaN."""
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        return math.nan
-    return float(value)
-
-
-def _shape(value: Any) -> np.ndarray:
-    """A report's ``{"real": [...], "imag": [...]}`` as a complex vector (empty if absent)."""
-    if not isinstance(value, Mapping):
-        return np.zeros(0, complex)
-    real = [_number(x) for x in value.get("real") or []]
-    imag = [_number(x) for x in value.get("imag") or []]
-    if len(real) != len(imag):
-        return np.zeros(0, complex)
-    return np.array(real, dtype=float) + 1j * np.array(imag, dtype=float)
 
 
 # ------------------------------------------------------------------------------ comparing
@@ -342,10 +226,8 @@ def compare(
         If both have shapes but of different lengths.
     """
     th = thresholds or Thresholds()
-    base = baseline.subset(baseline.physical & np.isfinite(baseline.frequency_hz))
-    cur = current.subset(current.physical & np.isfinite(current.frequency_hz))
-    base = base.subset(np.argsort(base.frequency_hz, kind="stable"))
-    cur = cur.subset(np.argsort(cur.frequency_hz, kind="stable"))
+    base = baseline.physical_by_frequency()
+    cur = current.physical_by_frequency()
     shapes_known = base.shapes.shape[1] > 0 and cur.shapes.shape[1] > 0
     if shapes_known and base.shapes.shape[1] != cur.shapes.shape[1]:
         raise ValueError(
@@ -353,7 +235,9 @@ def compare(
             f"{cur.shapes.shape[1]} today"
         )
     macs = cluster_mac(base, cur) if shapes_known else np.full((base.n_modes, cur.n_modes), np.nan)
-    pairs = match(base.frequency_hz, cur.frequency_hz, macs, th)
+    pairs = match(base.frequency_hz, cur.frequency_hz, macs,
+                  frequency_weight=th.frequency_weight,
+                  max_relative_shift=th.match_max_relative_shift, min_mac=th.match_min_mac)
     partner = dict(pairs)
     entries = []
     for i in range(base.n_modes):
@@ -370,93 +254,71 @@ def compare(
 
 
 def compare_reports(
-    baseline: Mapping[str, Any], current: Mapping[str, Any], thresholds: Thresholds | None = None
+    baseline: Report, current: Report, thresholds: Thresholds | None = None
 ) -> MonitoringResult:
-    """:func:`compare` on two report dicts (their ``modes`` lists).
+    """:func:`compare` on two reports (their modes).
 
     Raises
     ------
     ValueError
         If the reports' mode shapes are on different channels (names or count).
     """
-    names_b = _shape_channels(baseline)
-    names_c = _shape_channels(current)
+    names_b = baseline.shape_channels
+    names_c = current.shape_channels
     if names_b and names_c and names_b != names_c:
         raise ValueError(
             "the mode shapes are on other channels than the baseline's "
             f"({', '.join(names_c[:4])}{'...' if len(names_c) > 4 else ''} against "
             f"{', '.join(names_b[:4])}{'...' if len(names_b) > 4 else ''})"
         )
-    return compare(
-        mode_table(baseline.get("modes") or []), mode_table(current.get("modes") or []), thresholds
-    )
+    return compare(baseline.mode_table(), current.mode_table(), thresholds)
 
 
-def _shape_channels(report: Mapping[str, Any]) -> list[str]:
-    """The channel names of a report's mode shapes (empty when the report does not say)."""
-    inp = report.get("input") or {}
-    names = inp.get("mode_shape_channels") or inp.get("output_names") or []
-    return [str(n) for n in names]
+def baseline_identity(baseline: Report, path: str) -> dict[str, Any]:
+    """What names a baseline in a monitoring block: ``path``, ``created``, ``input_sha256``."""
+    return {"path": str(path), "created": baseline.created, "input_sha256": baseline.input.sha256}
 
 
-def cluster_mac(base: ModeTable, cur: ModeTable) -> np.ndarray:
-    """MAC of each baseline shape with the span of each current mode's cluster.
+def attach_monitoring(
+    report: Report, baseline: Report, baseline_path: str, thresholds: Thresholds | None = None
+) -> MonitoringResult:
+    """Check a report against a baseline report and set its ``monitoring`` block.
 
-    For a current mode alone in its cluster this is the ordinary MAC; for a member of a
-    near-repeated cluster it is the share of the baseline shape that lies in the span of all
-    members of that cluster (the members' own shapes wander inside a repeated root's span).
-
-    Returns
-    -------
-    ndarray, shape (base.n_modes, cur.n_modes)
-        In [0, 1]; NaN where a shape has non-finite entries or is zero.
-    """
-    out = np.full((base.n_modes, cur.n_modes), np.nan)
-    a = base.shapes
-    if a.shape[1] == 0 or cur.shapes.shape[1] != a.shape[1]:
-        return out
-    good_a = np.all(np.isfinite(a), axis=1) & (np.linalg.norm(a, axis=1) > 0)
-    for c in np.unique(cur.cluster):
-        members = np.flatnonzero(cur.cluster == c)
-        span = cur.shapes[members]
-        if not np.all(np.isfinite(span)) or not np.any(np.abs(span) > 0):
-            continue
-        q, _ = np.linalg.qr(span.T)
-        proj = q.conj().T @ a[good_a].T
-        share = np.sum(np.abs(proj) ** 2, axis=0) / np.sum(np.abs(a[good_a]) ** 2, axis=1)
-        for j in members:
-            out[good_a, j] = np.clip(share, 0.0, 1.0)
-    return out
-
-
-def match(
-    f_base: np.ndarray, f_cur: np.ndarray, macs: np.ndarray, thresholds: Thresholds
-) -> list[tuple[int, int]]:
-    """Pairs ``(i, j)`` of baseline and current modes by a Hungarian assignment.
-
-    The cost of a pair is ``|f_cur - f_base| / f_base / frequency_weight + 1 - MAC``
-    (without the MAC term when it is NaN); pairs further apart than
-    ``match_max_relative_shift`` or with a MAC below ``match_min_mac`` are not allowed.
+    Parameters
+    ----------
+    report : Report
+        The new report (changed in place: ``monitoring``, and ``warnings`` when a number
+        of the block is not finite).
+    baseline : Report
+        The baseline report.
+    baseline_path : str
+        Where the baseline was read from (recorded in the block).
+    thresholds : Thresholds, optional
 
     Returns
     -------
-    list of (int, int)
-        Allowed pairs of the minimum-cost assignment, by baseline index.
-    """
-    f_base = np.asarray(f_base, dtype=float)
-    f_cur = np.asarray(f_cur, dtype=float)
-    if f_base.size == 0 or f_cur.size == 0:
-        return []
-    rel = np.abs(f_cur[None, :] - f_base[:, None]) / np.abs(f_base[:, None])
-    shape_cost = np.where(np.isnan(macs), 0.0, 1.0 - np.nan_to_num(macs))
-    cost = rel / thresholds.frequency_weight + shape_cost
-    allowed = rel <= thresholds.match_max_relative_shift
-    allowed &= np.isnan(macs) | (np.nan_to_num(macs) >= thresholds.match_min_mac)
-    cost = np.where(allowed, cost, _INADMISSIBLE)
-    from scipy.optimize import linear_sum_assignment  # imported here: it is slow to load
+    MonitoringResult
 
-    rows, cols = linear_sum_assignment(cost)
-    return [(int(i), int(j)) for i, j in zip(rows, cols) if allowed[i, j]]
+    Raises
+    ------
+    ValueError
+        If the two reports' mode shapes are on different channels.
+
+    Notes
+    -----
+    The block holds ``baseline`` (``path``, ``created``, ``input_sha256``), ``flagged``,
+    ``n_flagged``, ``thresholds`` and ``modes``: one entry per physical baseline mode
+    (``status`` ``ok``, ``changed`` or ``missing``) and one per new physical mode.
+    """
+    from automodal.io.json_safe import non_finite_warnings
+
+    result = compare_reports(baseline, report, thresholds)
+    non_finite: list[str] = []
+    report.monitoring = MonitoringBlock.from_dict(
+        {"baseline": baseline_identity(baseline, baseline_path),
+         **result.to_dict(non_finite, "monitoring")})
+    report.warnings.extend(non_finite_warnings(non_finite))
+    return result
 
 
 def _matched_entry(
@@ -547,19 +409,6 @@ def _new_entry(cur: ModeTable, j: int) -> ModeCheck:
     )
 
 
-def _plain(value: Any) -> Any:
-    """JSON-safe copy: numpy scalars to Python, non-finite floats to ``None``."""
-    if isinstance(value, (list, tuple)):
-        return [_plain(v) for v in value]
-    if isinstance(value, (bool, np.bool_)):
-        return bool(value)
-    if isinstance(value, (int, np.integer)):
-        return int(value)
-    if isinstance(value, (float, np.floating)):
-        return float(value) if math.isfinite(value) else None
-    return value
-
-
 # ------------------------------------------------------------------------------ history
 
 
@@ -626,51 +475,10 @@ class History:
         return int(self.mode_ids.size)
 
 
-def report_time(report: Mapping[str, Any]) -> tuple[str, str]:
-    """When a report's test was made: ``(iso_time, source)``.
-
-    The first of :data:`DATE_KEYS` in ``input.attributes`` that parses as ISO 8601 wins
-    (source ``"test_date"``); otherwise the report's ``created`` (source ``"created"``).
-    Times without a zone are taken as UTC; the result is UTC with a ``Z``.
-
-    Raises
-    ------
-    ValueError
-        If neither gives a time.
-    """
-    attributes = (report.get("input") or {}).get("attributes") or {}
-    for key in DATE_KEYS:
-        parsed = _parse_time(attributes.get(key))
-        if parsed is not None:
-            return parsed, "test_date"
-    parsed = _parse_time(report.get("created"))
-    if parsed is None:
-        raise ValueError("the report has neither a test date nor a valid 'created' time")
-    return parsed, "created"
-
-
-def _parse_time(value: Any) -> str | None:
-    """An ISO 8601 text as UTC ``YYYY-MM-DDTHH:MM:SSZ``, or ``None``."""
-    import datetime as dt
-
-    if not isinstance(value, str) or not value.strip():
-        return None
-    text = value.strip()
-    if text.endswith(("Z", "z")):
-        text = text[:-1] + "+00:00"
-    try:
-        t = dt.datetime.fromisoformat(text)
-    except ValueError:
-        return None
-    if t.tzinfo is None:
-        t = t.replace(tzinfo=dt.timezone.utc)
-    return t.astimezone(dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
-
-
 def build_history(
-    reports: Sequence[Mapping[str, Any]],
+    reports: Sequence[Report],
     labels: Sequence[str],
-    baseline: Mapping[str, Any],
+    baseline: Report,
     baseline_label: str,
     thresholds: Thresholds | None = None,
 ) -> History:
@@ -678,11 +486,11 @@ def build_history(
 
     Parameters
     ----------
-    reports : sequence of dict
-        Report dicts, in any order (they are sorted by :func:`report_time`, then label).
+    reports : sequence of Report
+        In any order (they are sorted by :meth:`Report.test_time`, then label).
     labels : sequence of str
         Where each report came from.
-    baseline : dict
+    baseline : Report
         The report whose physical modes are tracked and against which each report is
         checked with :func:`compare_reports`.
     baseline_label : str
@@ -703,14 +511,12 @@ def build_history(
     stamped = []
     for report, label in zip(reports, labels):
         try:
-            when, source = report_time(report)
+            when, source = report.test_time()
         except ValueError as exc:
             raise ValueError(f"{label}: {exc}") from None
         stamped.append((when, str(label), source, report))
     stamped.sort(key=lambda s: (s[0], s[1]))
-    base = mode_table(baseline.get("modes") or [])
-    base = base.subset(base.physical & np.isfinite(base.frequency_hz))
-    base = base.subset(np.argsort(base.frequency_hz, kind="stable"))
+    base = baseline.mode_table().physical_by_frequency()
     column = {int(k): m for m, k in enumerate(base.ids)}
     T, M = len(stamped), base.n_modes
     h = History(
@@ -739,7 +545,7 @@ def build_history(
             result = compare_reports(baseline, report, th)
         except ValueError as exc:
             raise ValueError(f"{label}: {exc}") from None
-        cur = mode_table(report.get("modes") or [])
+        cur = report.mode_table()
         row = {int(k): r for r, k in enumerate(cur.ids)}
         h.flagged[t] = result.flagged
         for e in result.entries:
@@ -760,3 +566,48 @@ def build_history(
             h.damping_ci95[t, m] = cur.damping_ci95[r]
             h.mac[t, m] = np.nan if e.mac is None else e.mac
     return h
+
+
+def history_of_files(
+    files: Sequence[str], baseline_path: str | None = None, thresholds: Thresholds | None = None
+) -> History:
+    """Read report files and track the baseline's physical modes through them.
+
+    Parameters
+    ----------
+    files : sequence of str
+        Report files (JSON or HDF5).
+    baseline_path : str, optional
+        The baseline report; default the earliest of ``files`` (by
+        :meth:`Report.test_time`, then name).
+    thresholds : Thresholds, optional
+
+    Returns
+    -------
+    History
+
+    Raises
+    ------
+    InputError
+        If a report cannot be read or is malformed, has no time, or has its shapes on
+        other channels than the baseline (the message names the file).
+    """
+    from automodal.errors import InputError
+    from automodal.io.report import load_report
+
+    loaded = [load_report(f) for f in files]
+    if baseline_path:
+        baseline, label = load_report(baseline_path), baseline_path
+    else:
+        times = []
+        for report, path in zip(loaded, files):
+            try:
+                times.append(report.test_time()[0])
+            except ValueError as exc:
+                raise InputError(str(exc), path) from None
+        first = min(range(len(files)), key=lambda i: (times[i], files[i]))
+        baseline, label = loaded[first], files[first]
+    try:
+        return build_history(loaded, list(files), baseline, label, thresholds)
+    except ValueError as exc:
+        raise InputError(str(exc)) from None

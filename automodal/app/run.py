@@ -1,0 +1,163 @@
+"""Run one file: read the input, identify, make the report, check it, write it.
+
+:func:`run_file` is the one path from an input file to its report files, used by
+``automodal identify`` on one file (:mod:`automodal.cli.identify_cmd`) and by each file of a
+batch (:func:`automodal.app.batch.process_file`). :func:`check_jobs` gives ``jobs`` its one
+meaning: ``None`` automatic (all cores when the work pays for them), an integer >= 1 that
+many workers; 0 or negative is refused.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from automodal.errors import InputError
+
+if TYPE_CHECKING:
+    from automodal.app.monitoring import MonitoringResult, Thresholds
+    from automodal.frfdata import FRFData
+    from automodal.result import Result
+    from automodal.settings import Settings
+    from automodal.report_model import Report
+
+__all__ = ["RunOutcome", "check_jobs", "read_input", "run_file", "save"]
+
+
+@dataclass
+class RunOutcome:
+    """What :func:`run_file` made.
+
+    Attributes
+    ----------
+    report : Report
+        The report (with its ``monitoring`` block when checked against a baseline).
+    result : Result
+        The pipeline's result.
+    check : MonitoringResult or None
+        The baseline check, when there was a baseline.
+    written : list of Path
+        The report files written.
+    """
+
+    report: Report
+    result: Result
+    check: MonitoringResult | None = None
+    written: list[Path] = field(default_factory=list)
+
+    @property
+    def flagged(self) -> bool:
+        """Whether the baseline check raised the alarm."""
+        return self.check is not None and self.check.flagged
+
+
+def check_jobs(jobs: int | None) -> int | None:
+    """``jobs`` itself if it is ``None`` (automatic) or an integer >= 1.
+
+    Raises
+    ------
+    InputError
+        For 0, a negative number or a non-integer.
+    """
+    if jobs is None:
+        return None
+    if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
+        raise InputError(f"jobs must be an integer >= 1 (or None: automatic), not {jobs!r}")
+    return jobs
+
+
+def read_input(path: str | os.PathLike[str]) -> FRFData:
+    """Read any supported input file as FRFs (:func:`automodal.io.readers.read_any`; time
+    series go through the pipeline's input stage, :func:`automodal.core.from_time.as_frfdata`,
+    here, so that the report describes the FRFs that were analysed).
+
+    Raises
+    ------
+    InputError
+        If ``path`` is a folder, or the file cannot be read.
+    """
+    if Path(path).is_dir():
+        raise InputError("is a folder, not an input file", os.fspath(path))
+    from automodal.core.from_time import as_frfdata
+    from automodal.io.readers import read_any
+
+    return as_frfdata(read_any(path))
+
+
+def save(out: str | os.PathLike[str], outcome_report: Report, result: Result) -> Path:
+    """Write one report file (atomically: whole or not at all).
+
+    A failure to write (read-only folder, full disk) becomes an :class:`InputError`
+    naming the report.
+    """
+    from automodal.io.report import save_report
+
+    try:
+        save_report(out, outcome_report, result.poles, frf=result.frf_fit)
+    except OSError as exc:
+        reason = exc.strerror or " ".join(str(exc).split()) or type(exc).__name__
+        raise InputError(f"cannot write the report: {reason}", os.fspath(out)) from exc
+    return Path(out)
+
+
+def run_file(
+    path: str | os.PathLike[str],
+    settings: Settings,
+    outputs: Sequence[str | os.PathLike[str]] = (),
+    baseline: Report | None = None,
+    baseline_path: str | None = None,
+    thresholds: Thresholds | None = None,
+    progress: Callable[[int], None] | None = None,
+) -> RunOutcome:
+    """Identify one input file and write its reports.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The input (any format :func:`automodal.io.readers.read_any` reads).
+    settings : Settings
+        Settings of the identification (``jobs`` included).
+    outputs : sequence of path-like
+        Report files to write (``.json``, ``.h5``), after the baseline check.
+    baseline : Report, optional
+        A baseline report to check the new one against (its ``monitoring`` block).
+    baseline_path : str, optional
+        Where the baseline came from (recorded in the block, named in messages).
+    thresholds : Thresholds, optional
+        Of the baseline check.
+    progress : callable, optional
+        Called with the number of bootstrap replicates done since the last call.
+
+    Returns
+    -------
+    RunOutcome
+
+    Raises
+    ------
+    InputError
+        If the input cannot be read or identified, the report cannot be checked against
+        the baseline (shapes on other channels), or a report cannot be written.
+    """
+    from automodal.io.report import build_report
+    from automodal.pipeline import identify
+
+    check_jobs(settings.jobs)
+    data = read_input(path)
+    result = identify(data, settings, progress=progress)
+    report = build_report(result, data, input_path=path)
+    check = None
+    if baseline is not None:
+        from automodal.app.monitoring import attach_monitoring
+
+        try:
+            check = attach_monitoring(report, baseline, baseline_path or "", thresholds)
+        except ValueError as exc:
+            raise InputError(
+                f"cannot be checked against {baseline_path or 'the baseline'}: {exc}",
+                os.fspath(path),
+            ) from None
+    written = [save(out, report, result) for out in outputs]
+    return RunOutcome(report=report, result=result, check=check, written=written)
