@@ -7,6 +7,8 @@ Each command lives in its own module and is imported only when it runs, so that
 from __future__ import annotations
 
 import importlib
+import sys
+from typing import Any
 
 import click
 
@@ -33,6 +35,25 @@ class _LazyGroup(click.Group):
             return None
         module, attr, _ = _COMMANDS[cmd_name]
         return getattr(importlib.import_module(module), attr)
+
+    def main(self, *args: Any, **kwargs: Any) -> Any:
+        """Run the command line; bad usage (an unknown option, a value out of range) ends in
+        one line on stderr and exit status 2, like every other bad input."""
+        kwargs["standalone_mode"] = False
+        try:
+            rv = super().main(*args, **kwargs)
+        except click.UsageError as exc:
+            where = exc.ctx.command_path if exc.ctx is not None else "automodal"
+            message = " ".join(exc.format_message().split())
+            click.echo(f"automodal: error: {message} (see '{where} --help')", err=True)
+            sys.exit(2)
+        except click.ClickException as exc:
+            exc.show()
+            sys.exit(exc.exit_code)
+        except click.Abort:
+            click.echo("Aborted!", err=True)
+            sys.exit(1)
+        sys.exit(rv if isinstance(rv, int) else 0)
 
     def format_commands(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
         rows = [(name, _COMMANDS[name][2]) for name in self.list_commands(ctx)]
