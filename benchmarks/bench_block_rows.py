@@ -40,8 +40,15 @@ from unittest import mock
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import numpy as np  # noqa: E402
-from bench_e2e import CASES, blas_line, git_state, load_average, match_modes, run_child  # noqa: E402
-from bench_e2e import automodal_cmd  # noqa: E402
+from bench_e2e import (  # noqa: E402
+    CASES,
+    automodal_cmd,  # noqa: E402
+    blas_line,
+    git_state,
+    load_average,
+    match_modes,
+    run_child,
+)
 
 from automodal import pipeline  # noqa: E402
 from automodal.core import subspace  # noqa: E402
@@ -196,7 +203,8 @@ def pipeline_runs(path: Path, true: np.ndarray) -> list[dict]:
                      "basis": res.orders["basis"] + (" (congruence sums)" if congruence else ""),
                      "n0": res.orders["n0"], "n_ref": res.orders["reference"],
                      "physical": len(phys), "found": found, "extra": extra, "time": dt})
-        print(f"  pipeline q>={Q} congruence={congruence}: {found} found, {extra} extra, {dt:.1f} s", file=sys.stderr)
+        print(f"  pipeline q>={Q} congruence={congruence}: {found} found, {extra} extra,"
+              f" {dt:.1f} s", file=sys.stderr)
     return rows
 
 

@@ -21,7 +21,8 @@ Extra figures:
   own preparation (band, reciprocity, channel scaling, line weights) is repeated, and
   ``automodal.core.replicates.run_replicates`` (the 100 replicates, with the pipeline's
   arguments) is timed against one ``automodal.core.subspace.identify`` on the full data at
-  the reference order and block rows that ``automodal.pipeline.identify`` reports in ``result.orders``.
+  the reference order and block rows that ``automodal.pipeline.identify`` reports in
+  ``result.orders``.
 * **Peer**: the FRFs of case a through sdypy-EMA's LSCF (``pip install -e '.[bench]'``), in a
   fresh interpreter, from FRF arrays (read from a ``.npz``) to poles selected with
   ``select_closest_poles``. sdypy-EMA needs a person to pick the poles on a stability chart;
@@ -345,8 +346,8 @@ def bench_replicates(path: Path, repeat: int) -> dict:
         S = subspace.schur_complement(sums, slice(0, settings.n_bootstrap))
         O, _ = subspace.observability_from_schur(S, n_hi)
         A, _ = subspace.shift_invariance(O, ny, basis)
-        t_eigh, _, _ = timed_min(lambda: np.linalg.eigh(S), repeat)
-        t_eig, _, _ = timed_min(lambda: np.linalg.eig(A), repeat)
+        t_eigh, _, _ = timed_min(lambda S=S: np.linalg.eigh(S), repeat)
+        t_eig, _, _ = timed_min(lambda A=A: np.linalg.eig(A), repeat)
     del S, O, A, sums
 
     def textbook():

@@ -13,7 +13,8 @@ CLI_CASES = [case for case in BAD_CASES if case.cli]
 
 def run_identify(input_path, report_path) -> subprocess.CompletedProcess:
     """Run ``python -m automodal identify INPUT -o REPORT`` in a fresh process."""
-    command = [sys.executable, "-m", "automodal", "identify", str(input_path), "-o", str(report_path)]
+    command = [sys.executable, "-m", "automodal", "identify", str(input_path),
+               "-o", str(report_path)]
     return subprocess.run(command, capture_output=True, text=True, timeout=120)
 
 

@@ -117,8 +117,8 @@ def test_dropped_channel_keeps_report_and_shape_plot_consistent():
     import matplotlib
 
     matplotlib.use("Agg")
-    from automodal.io.report import report_dict
     from automodal.app.plots import mode_shapes
+    from automodal.io.report import report_dict
 
     system = sim.damp(sim.grid(2, 3), zeta=0.01)
     lines = sim.frequency_lines(1.25 * sim.natural_frequencies_hz(system).max(), 600)

@@ -189,8 +189,8 @@ def test_validate_sees_arrays_changed_in_place_and_replace_checks_too():
 
 
 def test_the_pipeline_refuses_data_changed_in_place():
-    from automodal.settings import Settings
     from automodal.pipeline import identify
+    from automodal.settings import Settings
 
     data = FRFData(**arrays())
     data.frequency[4] = data.frequency[3]

@@ -7,10 +7,10 @@ import subprocess
 import sys
 from pathlib import Path
 
+import cases
 import numpy as np
 import pytest
 
-import cases
 from automodal.pipeline import identify
 from automodal.settings import Settings
 

@@ -34,10 +34,10 @@ from automodal.io.report import (
     save_report,
     write_report,
 )
-from automodal.result import Result
-from automodal.settings import Settings
 from automodal.pipeline import identify
 from automodal.report_model import Report
+from automodal.result import Result
+from automodal.settings import Settings
 
 FIXED_TIME = "2026-01-02T03:04:05Z"
 

@@ -35,8 +35,8 @@ from automodal.errors import InputError
 from automodal.io.atomic import atomic_path
 from automodal.io.json_safe import json_safe
 from automodal.io.readers import READERS
-from automodal.settings import Settings
 from automodal.report_model import Report, utc_now
+from automodal.settings import Settings
 
 __all__ = [
     "REPORT_FORMATS",
@@ -376,8 +376,8 @@ def run_batch(
     force : bool
         Identify files whose up-to-date reports exist.
     jobs : int, optional
-        Worker processes, >= 1 (default ``None``: all cores). With more than one file and more than one
-        worker, files run in parallel and each file's bootstrap in one process; otherwise
+        Worker processes, >= 1 (default ``None``: all cores). With more than one file and more
+        than one worker, files run in parallel and each file's bootstrap in one process; otherwise
         files run one after the other, each bootstrap with ``jobs`` processes.
     scheduler_address : str, optional
         Address of a running Dask distributed scheduler (``tcp://host:8786``): each file is a
@@ -394,8 +394,8 @@ def run_batch(
     Raises
     ------
     InputError
-        For an unknown ``formats``, ``jobs`` below 1, an output folder that cannot be made, or a Dask
-        scheduler that cannot be used.
+        For an unknown ``formats``, ``jobs`` below 1, an output folder that cannot be made, or a
+        Dask scheduler that cannot be used.
     """
     if formats not in REPORT_FORMATS:
         raise InputError(f"unknown report format {formats!r}: use json, h5 or both")

@@ -2,9 +2,10 @@
 
 The application side of monitoring: reports (:class:`~automodal.report_model.Report`) in,
 verdicts, messages, monitoring blocks and histories out (only :func:`history_of_files`
-reads files). The numerical matching is :mod:`automodal.core.matching`. :func:`compare` matches the physical modes of a new run to
-those of a baseline run by frequency and mode shape (a Hungarian assignment on a cost that
-adds the relative frequency distance to ``1 - MAC``) and flags a baseline mode
+reads files). The numerical matching is :mod:`automodal.core.matching`. :func:`compare`
+matches the physical modes of a new run to those of a baseline run by frequency and mode
+shape (a Hungarian assignment on a cost that adds the relative frequency distance to
+``1 - MAC``) and flags a baseline mode
 
 * whose frequency moved by more than ``max(k_sigma * s, min_relative_shift * f_baseline)``,
   with ``s = sqrt(s_baseline^2 + s_today^2)`` the two bootstrap standard deviations combined;

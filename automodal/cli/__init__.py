@@ -16,10 +16,12 @@ from automodal import __version__
 
 # command name -> (module, attribute, one-line help)
 _COMMANDS = {
-    "convert": ("automodal.cli.convert_cmd", "convert", "Convert UFF/UNV, CSV or NPZ FRFs to an FRF file."),
+    "convert": ("automodal.cli.convert_cmd", "convert",
+                "Convert UFF/UNV, CSV or NPZ FRFs to an FRF file."),
     "identify": ("automodal.cli.identify_cmd", "identify", "Identify the modes in an FRF file."),
     "plot": ("automodal.cli.plot_cmd", "plot", "Draw the figures of a report."),
-    "simulate": ("automodal.cli.simulate_cmd", "simulate", "Write a synthetic test of a known system."),
+    "simulate": ("automodal.cli.simulate_cmd", "simulate",
+                 "Write a synthetic test of a known system."),
     "track": ("automodal.cli.track_cmd", "track", "Track modes over time from many reports."),
 }
 

@@ -24,8 +24,8 @@ from automodal.errors import InputError
 if TYPE_CHECKING:
     from automodal.app.batch import FileOutcome
     from automodal.app.run import RunOutcome
-    from automodal.settings import Settings
     from automodal.report_model import Report
+    from automodal.settings import Settings
 
 REPORT_SUFFIXES = (".json", ".h5", ".hdf5")
 
@@ -134,7 +134,8 @@ def _run_batch(input_path: str, outputs: tuple[str, ...], settings: Settings,
 @click.option("-o", "--output", "outputs", multiple=True, metavar="REPORT",
               help="Write a report (.json or .h5); may be given several times.")
 @click.option("--json", "as_json", is_flag=True, help="Print the JSON report instead of the table.")
-@click.option("-q", "--quiet", is_flag=True, help="Print nothing unless something is wrong (for cron).")
+@click.option("-q", "--quiet", is_flag=True,
+              help="Print nothing unless something is wrong (for cron).")
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of the bootstrap.")
 @click.option("--bootstrap", "n_bootstrap", type=click.IntRange(2, 100000), default=100,
               show_default=True, help="Bootstrap replicates.")

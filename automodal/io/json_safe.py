@@ -104,7 +104,9 @@ def non_finite_warnings(paths: list[str], what: str = "report") -> list[str]:
             for field, n in counts.items()]
 
 
-def json_safe_with_warnings(value: Any, where: str = "", what: str = "report") -> tuple[Any, list[str]]:
+def json_safe_with_warnings(
+    value: Any, where: str = "", what: str = "report"
+) -> tuple[Any, list[str]]:
     """:func:`json_safe` and the warnings of :func:`non_finite_warnings` in one call."""
     found: list[str] = []
     clean = json_safe(value, where, found)

@@ -30,7 +30,6 @@ import numpy as np
 from automodal.errors import InputError
 from automodal.frfdata import FRFData
 from automodal.io.atomic import atomic_path
-from automodal.result import PoleTable, Result
 from automodal.report_model import (
     FORMAT_NAME,
     FORMAT_VERSION,
@@ -41,6 +40,7 @@ from automodal.report_model import (
     frequency_key,
     utc_now,
 )
+from automodal.result import PoleTable, Result
 
 __all__ = [
     "FORMAT_NAME",
