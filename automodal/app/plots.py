@@ -287,9 +287,9 @@ def mode_shapes(
         ``input.output_xyz``/``input.output_directions`` when ``xyz`` is not given).
     xyz : ndarray, shape (n_outputs, 3), optional
         Sensor coordinates (another shape raises ``ValueError``). With coordinates each mode is
-        a 3-D view of the sensors displaced by the real part of the shape along their directions (``+Z`` when none
-        is known), nearest neighbours joined by lines; without, the real part and the
-        magnitude of the shape are bars by channel.
+        a 3-D view of the sensors displaced by the real part of the shape along their
+        directions (``+Z`` when none is known), nearest neighbours joined by lines; without,
+        the real part and the magnitude of the shape are bars by channel.
     max_columns : int
         Panels per row.
     fig : Figure or SubFigure, optional
