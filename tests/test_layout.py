@@ -15,8 +15,16 @@ import pytest
 
 PACKAGE = Path(__file__).resolve().parents[1] / "automodal"
 
-FORBIDDEN_IN_CORE = ("h5py", "pyuff", "automodal.io")
-"""What no module of ``automodal/core`` may import: file formats and the I/O package."""
+FORBIDDEN_IN_CORE = (
+    "h5py", "pyuff", "matplotlib", "click", "automodal.io", "automodal.app", "automodal.cli",
+    "automodal.pipeline", "automodal.report_model",
+)
+"""What no module of ``automodal/core`` may import: file formats, figures, the command line,
+the I/O package, the application layer, the pipeline and the report model (the core reads
+no report)."""
+
+LAYERS_ABOVE_IO = ("automodal.app", "automodal.cli", "automodal.pipeline")
+"""What ``automodal/io`` may not import: it reads and writes files for the layers above."""
 
 
 def module_name(path: Path) -> str:
@@ -37,11 +45,24 @@ def parse(path: Path) -> ast.Module:
     return ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
 
 
-def imported_names(name: str, path: Path, tree: ast.Module) -> Iterator[tuple[str, int]]:
-    """Every (dotted name, line) the module imports, relative imports resolved; for
-    ``from X import a`` both ``X`` and ``X.a`` (the caller keeps what is a module)."""
-    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+def _type_checking_only(tree: ast.Module) -> set[int]:
+    """Ids of the nodes under ``if TYPE_CHECKING:``: never run, so no edge of the graph."""
+    skipped: set[int] = set()
     for node in ast.walk(tree):
+        if isinstance(node, ast.If) and "TYPE_CHECKING" in ast.unparse(node.test):
+            skipped.update(id(child) for stmt in node.body for child in ast.walk(stmt))
+    return skipped
+
+
+def imported_names(name: str, path: Path, tree: ast.Module) -> Iterator[tuple[str, int]]:
+    """Every (dotted name, line) the module imports at run time, relative imports
+    resolved; for ``from X import a`` both ``X`` and ``X.a`` (the caller keeps what is a
+    module)."""
+    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+    skipped = _type_checking_only(tree)
+    for node in ast.walk(tree):
+        if id(node) in skipped:
+            continue
         if isinstance(node, ast.Import):
             for alias in node.names:
                 yield alias.name, node.lineno
@@ -118,6 +139,13 @@ def test_io_format_modules_import_only_shared_helpers():
         imported = {m.rpartition(".")[2] for m in graph[f"automodal.io.{fmt}"]
                     if m.startswith("automodal.io.")}
         assert not imported & (formats | {"readers"}), (fmt, imported)
+
+
+def test_io_imports_no_layer_above_it():
+    graph = import_graph()
+    found = [(m, t) for m in graph if m.startswith("automodal.io")
+             for t in graph[m] if t.startswith(LAYERS_ABOVE_IO)]
+    assert not found, found
 
 
 def test_no_private_name_is_imported_across_io_modules():

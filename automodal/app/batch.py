@@ -29,7 +29,7 @@ from pathlib import Path
 from typing import Any
 
 from automodal import __version__
-from automodal.app.monitoring import Thresholds, baseline_identity
+from automodal.app.monitoring import baseline_identity
 from automodal.app.run import check_jobs, run_file
 from automodal.errors import InputError
 from automodal.io.atomic import atomic_path
@@ -37,6 +37,7 @@ from automodal.io.json_safe import json_safe
 from automodal.io.readers import READERS
 from automodal.report_model import Report, utc_now
 from automodal.settings import Settings
+from automodal.tracking import Thresholds
 
 __all__ = [
     "REPORT_FORMATS",

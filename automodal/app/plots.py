@@ -32,8 +32,8 @@ if TYPE_CHECKING:
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure, SubFigure
 
-    from automodal.app.monitoring import History
     from automodal.result import PoleTable
+    from automodal.tracking import History
 
 ReportLike = Report | Mapping[str, Any]
 """A :class:`~automodal.report_model.Report` or a report dict."""

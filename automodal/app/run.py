@@ -18,11 +18,12 @@ from typing import TYPE_CHECKING
 from automodal.errors import InputError
 
 if TYPE_CHECKING:
-    from automodal.app.monitoring import MonitoringResult, Thresholds
+    from automodal.app.monitoring import MonitoringResult
     from automodal.frfdata import FRFData
     from automodal.report_model import Report
     from automodal.result import Result
     from automodal.settings import Settings
+    from automodal.tracking import Thresholds
 
 __all__ = ["RunOutcome", "check_jobs", "read_input", "run_file", "save"]
 

@@ -32,9 +32,9 @@ import h5py
 import numpy as np
 
 from automodal import __version__
-from automodal.app.monitoring import History, Thresholds
 from automodal.errors import InputError
 from automodal.io.atomic import atomic_path
+from automodal.tracking import History, Thresholds
 
 __all__ = ["FORMAT_NAME", "FORMAT_VERSION", "is_history_file", "read_history", "write_history"]
 
