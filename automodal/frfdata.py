@@ -1,7 +1,7 @@
 """The in-memory test object: one test of one structure as frequency response functions.
 
 An :class:`FRFData` checks itself when it is made (and :meth:`FRFData.validate` checks it
-again on demand): the one place where the rules of ``spec/frf-file.md`` on the arrays are
+again on demand): the one place where the rules of ``docs/frf-file.md`` on the arrays are
 enforced, whatever the data came from (a reader of any format, the time-series analysis,
 Python code). Each broken rule has one message, raised as an
 :class:`~automodal.errors.InputError` naming ``source``.

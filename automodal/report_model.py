@@ -1,8 +1,8 @@
-"""The identification report (``spec/report.md``, version 1) as typed dataclasses.
+"""The identification report (``docs/report.md``, version 1) as typed dataclasses.
 
 :class:`Report` is the one interface to a report: :meth:`Report.from_result` builds it from
 a :class:`~automodal.pipeline.Result` and its input (the only place where report content is
-made), :meth:`Report.to_dict` gives the JSON content (the contract of ``spec/report.md``,
+made), :meth:`Report.to_dict` gives the JSON content (the contract of ``docs/report.md``,
 keys in the order they are written), and :meth:`Report.from_dict` checks a parsed report
 (JSON, or the ``report_json`` of an HDF5 report, see :func:`automodal.io.report.read_report`)
 and refuses a malformed one with an :class:`~automodal.errors.InputError` naming the field.
@@ -576,7 +576,7 @@ class ReportArrays:
 
 @dataclass
 class Report:
-    """One identification report (``spec/report.md``, version 1).
+    """One identification report (``docs/report.md``, version 1).
 
     Attributes
     ----------
@@ -723,7 +723,7 @@ class Report:
         )
 
     def to_dict(self) -> dict[str, Any]:
-        """The JSON content of the report (what is written; see ``spec/report.md``)."""
+        """The JSON content of the report (what is written; see ``docs/report.md``)."""
         out = self.header.to_dict()
         out.update({
             "input": self.input.to_dict(),

@@ -1,4 +1,4 @@
-"""A checker of the automodal report, version 1 (shared/spec/report.md), for the tests.
+"""A checker of the automodal report, version 1 (docs/report.md), for the tests.
 
 :func:`validate_report` validates a report against the JSON Schema shipped in the package
 (``automodal/schemas/report-v1.schema.json``) with ``jsonschema``, then checks what a
@@ -42,7 +42,7 @@ def schema_errors(report: Any) -> list[str]:
 
 
 def validate_report(report: Any, nullable: bool = False) -> None:
-    """Check a report dict against spec/report.md (version 1).
+    """Check a report dict against docs/report.md (version 1).
 
     Parameters
     ----------

@@ -1,4 +1,4 @@
-"""Reading and writing the automodal FRF file (spec/frf-file.md)."""
+"""Reading and writing the automodal FRF file (docs/frf-file.md)."""
 
 from __future__ import annotations
 

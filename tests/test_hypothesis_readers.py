@@ -3,7 +3,7 @@
 Every generated input (HDF5 FRF files of random shapes, dtypes, values and attributes, with
 optional damage; CSV tables; NPZ archives; UFF files; raw bytes) either reads into a valid
 :class:`~automodal.frfdata.FRFData` or is refused with one :class:`InputError` line that
-names the file (``spec/frf-file.md``). Nothing else may escape :func:`read_any`, the input
+names the file (``docs/frf-file.md``). Nothing else may escape :func:`read_any`, the input
 file is never changed and nothing is written beside it. A sample of the inputs also goes
 through ``automodal identify`` in a subprocess: exit 2 with one line on stderr, no traceback
 and no report for a refused input; exit 0 with a complete report, or exit 2 as above, for
@@ -788,7 +788,7 @@ def _snapshot(where: Path) -> dict[str, bytes]:
 
 
 def check_valid(data: FRFData, path: Path) -> None:
-    """Assert that ``data`` keeps every rule of ``spec/frf-file.md``."""
+    """Assert that ``data`` keeps every rule of ``docs/frf-file.md``."""
     f, H = data.frequency, data.frf
     assert f.ndim == 1 and f.size >= 1 and f.dtype == np.float64
     assert np.all(np.isfinite(f)) and f[0] >= 0 and np.all(np.diff(f) > 0)

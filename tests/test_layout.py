@@ -200,3 +200,37 @@ def test_core_does_no_input_or_output(name):
     """``automodal/core`` is pure: arrays in, arrays out (no h5py, pyuff, automodal.io,
     no file opened)."""
     assert core_problems(name, all_modules()[name]) == []
+
+
+def readme_layout_paths() -> set[str]:
+    """The ``automodal/...`` paths named in the first column of the README's layout table."""
+    text = (PACKAGE.parent / "README.md").read_text(encoding="utf-8")
+    section = text.split("## Layout", 1)[1].split("\n## ", 1)[0]
+    paths = set()
+    for row in section.splitlines():
+        if row.startswith("| `automodal"):
+            first = row.split("|")[1]
+            paths.update(p for p in first.replace("`", " ").replace(",", " ").split()
+                         if p.startswith("automodal"))
+    return paths
+
+
+def test_readme_layout_matches_the_tree():
+    """Every path the README's layout table names exists, and every module of the package
+    (each file of ``core``, ``io`` and the top level; the ``app`` and ``cli`` packages) is
+    in the table."""
+    named = readme_layout_paths()
+    root = PACKAGE.parent
+    missing = sorted(p for p in named if not (root / p.rstrip("/")).exists())
+    assert not missing, f"README names paths that do not exist: {missing}"
+    covered = {p.rstrip("/") for p in named}
+    unlisted = []
+    for path in sorted(PACKAGE.rglob("*.py")):
+        rel = path.relative_to(root).as_posix()
+        if path.name in ("__main__.py",) or "/cli/" in rel:
+            continue
+        if path.name == "__init__.py" and rel != "automodal/__init__.py":
+            continue
+        if rel not in covered and path.parent.relative_to(root).as_posix() not in covered:
+            unlisted.append(rel)
+    assert not unlisted, f"modules missing from the README's layout table: {unlisted}"

@@ -1,4 +1,4 @@
-"""The identification report (spec/report.md): content, JSON and HDF5 files, the table."""
+"""The identification report (docs/report.md): content, JSON and HDF5 files, the table."""
 
 from __future__ import annotations
 

@@ -19,7 +19,7 @@ EXIT_MONITORING = 3
 
 @contextmanager
 def exit_on_error(debug: bool = False) -> Iterator[None]:
-    """Turn exceptions into one line on stderr and the exit statuses of ``spec/cli.md``.
+    """Turn exceptions into one line on stderr and the exit statuses of ``docs/cli.md``.
 
     :class:`InputError` exits 2; any other exception exits 1. With ``debug`` the traceback
     is printed too.

@@ -55,7 +55,7 @@ Examples:
 @click.option("-q", "--quiet", is_flag=True, help="Print nothing on success.")
 @debug_option
 def convert(input_path: str, output: Path, quiet: bool, debug: bool) -> None:
-    """Convert INPUT to an automodal FRF file OUTPUT.h5 (shared/spec/frf-file.md).
+    """Convert INPUT to an automodal FRF file OUTPUT.h5 (docs/frf-file.md).
 
     INPUT is a UFF/UNV file with dataset 58 FRFs (.uff, .unv), a CSV or text table
     (.csv, .txt: frequency, then real/imaginary column pairs, one input), a NumPy archive

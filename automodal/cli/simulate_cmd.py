@@ -115,7 +115,7 @@ def simulate(output: Path, system_kind: str, dof: int, grid_size: tuple[int, int
              debug: bool) -> None:
     """Write a synthetic test of a known system to OUTPUT.h5, with its exact modes.
 
-    The FRF file (shared/spec/frf-file.md) gets the chosen responses per unit force with
+    The FRF file (docs/frf-file.md) gets the chosen responses per unit force with
     complex Gaussian noise; <OUTPUT stem>.modes.json beside it gets the exact modes at the
     sensors (frequency, damping ratio, shapes, residues) and every setting used.
     """

@@ -1,4 +1,4 @@
-"""Reading and writing the automodal FRF file (HDF5, version 1; see ``spec/frf-file.md``).
+"""Reading and writing the automodal FRF file (HDF5, version 1; see ``docs/frf-file.md``).
 
 The reader checks the file's layout (datasets present, of the right kind, dtype and shape,
 not too large to read) with the shared helpers of :mod:`automodal.io.hdf5` and
@@ -54,7 +54,7 @@ def read_frf(path: str | os.PathLike[str]) -> FRFData:
     Parameters
     ----------
     path : str or path-like
-        The HDF5 file (``spec/frf-file.md``).
+        The HDF5 file (``docs/frf-file.md``).
 
     Returns
     -------

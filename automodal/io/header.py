@@ -1,4 +1,4 @@
-"""The root header of automodal's HDF5 test file (``spec/frf-file.md``), shared by the FRF
+"""The root header of automodal's HDF5 test file (``docs/frf-file.md``), shared by the FRF
 and the time-series readers and writers: the ``format``, ``version`` and ``quantity``
 attributes, and the free attributes (structure, date, ...) that are copied into reports.
 """

@@ -1,4 +1,4 @@
-"""The identification report, version 1 (``spec/report.md``), as JSON or HDF5 files.
+"""The identification report, version 1 (``docs/report.md``), as JSON or HDF5 files.
 
 The content is the model :class:`~automodal.report_model.Report`; this module makes it for
 a run (:func:`build_report`, which hashes the input file) and writes and reads files:
@@ -102,7 +102,7 @@ def build_report(
     Returns
     -------
     Report
-        The keys of ``spec/report.md`` plus these additions: ``input.frequency_range_hz``
+        The keys of ``docs/report.md`` plus these additions: ``input.frequency_range_hz``
         (span of the whole input, while ``input.band_hz`` is the analysed band),
         ``input.output_xyz``, ``input.output_directions``, ``input.n_lines_analysed``,
         ``input.reciprocity``, ``input.mode_shape_channels``, ``settings.orders`` (the

@@ -1,4 +1,4 @@
-"""Reading and writing the ``/time`` group of the automodal FRF file (``spec/frf-file.md``).
+"""Reading and writing the ``/time`` group of the automodal FRF file (``docs/frf-file.md``).
 
 ``/time/outputs`` (n_samples, n_outputs) and optionally ``/time/inputs`` (n_samples,
 n_inputs) hold raw time series, the attribute ``sample_rate`` (Hz) on ``/time`` their rate.

@@ -1,6 +1,6 @@
 """JSON Schemas of automodal's files, shipped as package data (plain files for any language).
 
-``report-v1.schema.json`` is the report of ``spec/report.md`` (version 1). automodal itself
+``report-v1.schema.json`` is the report of ``docs/report.md`` (version 1). automodal itself
 never loads it (no runtime dependency on a validator); the tests check every report they
 make against it with ``jsonschema``. See :mod:`automodal.report_model` for the decision.
 """
