@@ -121,7 +121,12 @@ def prepare(data: FRFData, s: Settings, warnings: list[str]) -> Prepared:
     """
     freq, H, band = select_band(data, s.band_hz, warnings)
     data, freq, H = checks.prepare(data, freq, H, warnings)
-    noise = _estimate_noise(data, freq, H) if s.weighting == "noise" else None
+    noise = None
+    if s.weighting == "noise":
+        try:
+            noise = _estimate_noise(data, freq, H)
+        except ValueError as exc:  # too few lines for the local polynomial
+            warnings.append(f"no noise model ({exc}): envelope line weights and RMS scales")
     H, reciprocal = apply_reciprocity(H, warnings)
     omega = 2.0 * np.pi * freq
     T = default_scale(omega[0], omega[-1])

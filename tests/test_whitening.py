@@ -144,3 +144,74 @@ def test_a_majority_cluster_at_the_snr_of_noise_is_not_physical():
     assert not mode.physical and mode.physicalness == 0.0
     assert physicalness.vetoed(0.95, 95, 12.0 + 3 * np.sqrt(24) - 0.1, 12)
     assert not physicalness.vetoed(0.95, 95, 12.0 + 3 * np.sqrt(24) + 0.1, 12)
+
+
+# ---------------------------------------------------------------------------------------
+# The pipeline's use of the noise model
+# ---------------------------------------------------------------------------------------
+
+
+def _noisy_chain(noise: float = 0.02, seed: int = 3):
+    from automodal.core import simulate as sim
+
+    system = sim.damp(sim.chain(4), zeta=0.01)
+    freq = sim.frequency_lines(1.25 * sim.natural_frequencies_hz(system).max(), 800)
+    return sim.simulate_test(system, range(4), [3], freq, noise=noise, seed=seed,
+                             noise_kind="additive")
+
+
+def test_exact_system_order_with_the_noise_model_of_noise_free_data():
+    from automodal.core import bilinear, noise, order
+    from automodal.core import simulate as sim
+
+    system = sim.damp(sim.chain(3), "rayleigh", zeta=0.02)
+    freq = sim.frequency_lines(1.25 * sim.natural_frequencies_hz(system).max(), 400)
+    data, _ = sim.simulate_test(system, [0, 1, 2], [2], freq, "displacement", noise=0.0)
+    w = 2 * np.pi * data.frequency
+    z = bilinear.to_unit_circle(w, bilinear.default_scale(w[0], w[-1]))
+    var = noise.estimate_noise(data.frf).variance
+    lw, scales = whitening.whitening(var)
+    Hs = data.frf / scales[None, :, None]
+    choice = order.select_orders(z, Hs, lw, variance=var / (scales**2)[None, :, None])
+    assert choice.n0 == 6 and choice.rule == "significance"
+    assert choice.reference == order.excessive_order(6, choice.limit, order.SIGNIFICANT_EXCESS)
+
+
+def test_result_reports_the_noise_model_and_finds_the_modes():
+    from automodal.pipeline import Settings, identify
+
+    data, modes = _noisy_chain()
+    r = identify(data, Settings(seed=1, n_bootstrap=30, weighting="noise"))
+    assert r.noise is not None and r.noise.source == "data"
+    assert set(r.noise.output_level) == set(data.output_names)
+    for lvl in r.noise.output_level.values():
+        assert 0.005 < lvl < 0.08
+    assert r.noise.dispersion >= 1.0
+    found = np.array([m.frequency_hz for m in r.physical_modes])
+    for f in modes.frequency_hz:
+        assert np.min(np.abs(found - f)) < 0.01 * f
+    assert r.orders["n0_rule"] == "significance"
+
+
+def test_noise_bootstrap_runs_says_so_and_is_reproducible():
+    from automodal.pipeline import Settings, identify
+
+    data, modes = _noisy_chain()
+    s = Settings(seed=2, n_bootstrap=20, resample="noise", weighting="noise")
+    a = identify(data, s)
+    b = identify(data, Settings(seed=2, n_bootstrap=20, resample="noise", weighting="noise",
+                                 jobs=1))
+    assert any("bootstrap of the noise model" in w for w in a.warnings)
+    np.testing.assert_array_equal(a.poles.frequency_hz, b.poles.frequency_hz)
+    found = np.array([m.frequency_hz for m in a.physical_modes])
+    for f in modes.frequency_hz:
+        assert np.min(np.abs(found - f)) < 0.01 * f
+
+
+def test_noise_resampling_needs_the_noise_weighting():
+    from automodal.settings import Settings, SettingsError
+
+    with pytest.raises(SettingsError, match="resample"):
+        Settings(resample="noise", weighting="envelope")
+    with pytest.raises(SettingsError, match="weighting"):
+        Settings(weighting="bogus")

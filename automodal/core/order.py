@@ -393,7 +393,7 @@ class OrderChoice:
     rule: str = "floor"
 
 
-SIGNIFICANT_EXCESS = 1.5
+SIGNIFICANT_EXCESS = 2.0
 """Reference order over ``n0`` when ``n0`` comes from the significance test: on the 48
 calibration files (seeds 211, 214, 215, 218) that ``n0`` was never below 0.9 times the
 true order (median 1.35 times), where the misfit floor gave about half of it."""
