@@ -39,6 +39,7 @@ from automodal.core import (
     replicates,
     subspace,
     summary,
+    whitening,
 )
 from automodal.core.bilinear import default_scale, to_unit_circle
 from automodal.core.clustering import TRASHBOX
@@ -46,10 +47,11 @@ from automodal.core.from_time import as_frfdata
 from automodal.core.reciprocity import apply_reciprocity
 from automodal.errors import InputError
 from automodal.frfdata import FRFData
-from automodal.result import IdentifiedMode, PoleTable, Result
+from automodal.result import IdentifiedMode, NoiseInfo, PoleTable, Result
 from automodal.settings import Settings
 
 if TYPE_CHECKING:
+    from automodal.core.noise import NoiseEstimate
     from automodal.timedata import TimeSeries
 
 __all__ = [
@@ -98,9 +100,11 @@ class Prepared:
     omega: np.ndarray
     T: float  # bilinear scale
     z: np.ndarray  # lines on the unit circle
-    scales: np.ndarray  # per-output RMS scaling
+    scales: np.ndarray  # per-output scaling (noise std, or RMS without a noise model)
     Hs: np.ndarray  # scaled FRF
     line_weights: np.ndarray
+    noise: NoiseEstimate | None = None  # the noise model of the analysed FRF (un-oriented)
+    variance: np.ndarray | None = None  # its variance, oriented and channel-scaled like Hs
 
     @property
     def window_decay(self) -> float:
@@ -117,16 +121,42 @@ def prepare(data: FRFData, s: Settings, warnings: list[str]) -> Prepared:
     """
     freq, H, band = select_band(data, s.band_hz, warnings)
     data, freq, H = checks.prepare(data, freq, H, warnings)
+    noise = None
+    if s.weighting == "noise":
+        try:
+            noise = _estimate_noise(data, freq, H)
+        except ValueError as exc:  # too few lines for the local polynomial
+            warnings.append(f"no noise model ({exc}): envelope line weights and RMS scales")
     H, reciprocal = apply_reciprocity(H, warnings)
     omega = 2.0 * np.pi * freq
     T = default_scale(omega[0], omega[-1])
-    scales = subspace.channel_scales(H)
-    Hs = H / scales[None, :, None]
+    variance = None
+    if noise is None:
+        scales = subspace.channel_scales(H)
+        Hs = H / scales[None, :, None]
+        weights = subspace.envelope_weights(Hs)
+    else:
+        variance = noise.variance.transpose(0, 2, 1) if reciprocal else noise.variance
+        weights, scales = whitening.whitening(variance)
+        Hs = H / scales[None, :, None]
+        variance = variance / (scales**2)[None, :, None]
     return Prepared(
         data=data, frequency=freq, H=H, band_hz=band, reciprocal=reciprocal, omega=omega, T=T,
-        z=to_unit_circle(omega, T), scales=scales, Hs=Hs,
-        line_weights=subspace.envelope_weights(Hs),
+        z=to_unit_circle(omega, T), scales=scales, Hs=Hs, line_weights=weights,
+        noise=noise, variance=variance,
     )
+
+
+def _estimate_noise(data: FRFData, freq: np.ndarray, H: np.ndarray) -> NoiseEstimate:
+    """The noise model of the analysed band (records, coherence or the data alone)."""
+    from automodal.core.noise import averages_from_attributes, estimate_noise
+
+    lines = np.isin(data.frequency, freq)
+    exact = int(lines.sum()) == freq.size  # the band's lines are lines of the file
+    coh = data.coherence[lines] if exact and data.coherence is not None else None
+    rec = data.records[:, lines] if exact and data.records is not None else None
+    return estimate_noise(H, coherence=coh, records=rec,
+                          n_averages=averages_from_attributes(data.attributes))
 
 
 # ---------------------------------------------------------------------------------------
@@ -169,17 +199,25 @@ def _identify(data: FRFData, s: Settings, progress: Callable[[int], None] | None
     t0 = time.perf_counter()
     warnings: list[str] = []
     p = prepare(data, s, warnings)
-    choice = order.select_orders(p.z, p.Hs, p.line_weights, s.max_order, p.data.source)
+    choice = order.select_orders(p.z, p.Hs, p.line_weights, s.max_order, p.data.source,
+                                 variance=p.variance)
     ref = reference.build_reference(
         p.z, p.Hs, p.scales, p.line_weights, choice.reference, p.T,
         (float(p.omega[0]), float(p.omega[-1])), s.zeta_max, s.coalescence, p.window_decay,
     )
-    reps = _replicates(p, s, ref, choice.reference, progress, warnings)
+    ref_dispersion = 1.0
+    if p.variance is not None:
+        ref_dispersion = whitening.dispersion(ref.modal.frequency_response(p.z), p.Hs,
+                                              p.variance, choice.reference)
+    reps = _replicates(p, s, ref, choice.reference, progress, warnings, ref_dispersion)
     clusters = reference.cluster_against_reference(ref, reps, s.n_bootstrap, s.threshold)
+    snr2 = None
+    if p.variance is not None:
+        snr2 = whitening.mode_snr2(ref.modal, p.z, p.variance) / ref_dispersion
     modes = summary.summarise_clusters(
         clusters.labels, clusters.rho, reps.poles, reps.shapes, reps.replicate,
         clusters.subspaces, ref.modes, p.scales, ref.contribution, s.n_bootstrap,
-        s.min_physicalness,
+        s.min_physicalness, snr2, whitening.mode_parameters(*p.Hs.shape[1:]),
     )
     keep = summary.physical_reference_modes(modes, clusters.subspaces)
     H_syn = ref.modal.synthesize(p.z, keep) * p.scales[None, :, None]
@@ -198,6 +236,8 @@ def _identify(data: FRFData, s: Settings, progress: Callable[[int], None] | None
         frf_fit=_frf_fit(p, H_syn),
         shape_channels=list(p.data.input_names if p.reciprocal else p.data.output_names),
         n_lines=int(p.H.shape[0]),
+        noise=None if p.noise is None else NoiseInfo.from_estimate(
+            p.noise, list(p.data.output_names), ref_dispersion),
     )
 
 
@@ -208,6 +248,7 @@ def _replicates(
     n: int,
     progress: Callable[[int], None] | None,
     warnings: list[str],
+    dispersion: float = 1.0,
 ) -> replicates.ReplicatePoles:
     """The bootstrap: record replicates when the data have repeated records (and
     ``s.resample`` allows), else frequency-line replicates; all their modes stacked."""
@@ -224,6 +265,18 @@ def _replicates(
         warnings.append(
             f"bootstrap over the {records.shape[0]} repeated records (each replicate averages"
             " a resample of them): the spread reflects the records' own noise"
+        )
+    elif s.resample == "noise" and p.variance is not None:
+        seeds = rng.integers(0, 2**63 - 1, size=s.n_bootstrap)
+        H_model = ref.modal.frequency_response(p.z)
+        reps = replicates.run_noise_replicates(
+            ref.basis, H_model, p.variance * dispersion, n, p.T, seeds, p.line_weights,
+            s.jobs, progress,
+        )
+        warnings.append(
+            f"bootstrap of the noise model (source: {p.noise.source}): each replicate is the"
+            " reference model's FRF plus fresh noise of the estimated variance"
+            f" (times {dispersion:.3g}, the reference model's residual over the noise)"
         )
     else:
         weights = bootstrap.line_weights(p.H.shape[0], s.n_bootstrap, rng)
@@ -245,6 +298,7 @@ def _orders_info(
         "scanned": [int(x) for x in choice.scanned],
         "misfit": [float(x) for x in choice.misfit],
         "n0": int(choice.n0),
+        "n0_rule": choice.rule,
         "reference": int(choice.reference),
         "block_rows": int(ref.q),
         "basis": "monomial" if ref.basis.monomial else "orthonormal",

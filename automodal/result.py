@@ -59,6 +59,52 @@ class PoleTable:
 
 
 @dataclass
+class NoiseInfo:
+    """The noise model the run used (:class:`automodal.core.noise.NoiseEstimate` in brief).
+
+    Attributes
+    ----------
+    source : str
+        ``"records"``, ``"coherence"`` or ``"data"``.
+    output_level : dict of str to float
+        Relative noise level per output channel (noise std over the FRF's RMS).
+    n_averages : float or None
+        Averages used by the coherence law.
+    assumptions : list of str
+        What the estimate assumed, in words.
+    dispersion : float
+        The reference model's whitened residual over its degrees of freedom (at least 1):
+        how much more than the noise the model leaves unexplained; SNRs are divided by it.
+    """
+
+    source: str
+    output_level: dict[str, float]
+    n_averages: float | None = None
+    assumptions: list[str] = field(default_factory=list)
+    dispersion: float = 1.0
+
+    @classmethod
+    def from_estimate(
+        cls, estimate: Any, output_names: list[str], dispersion: float = 1.0
+    ) -> NoiseInfo:
+        """From a :class:`~automodal.core.noise.NoiseEstimate` of the FRF (outputs in the
+        file's order)."""
+        level = np.asarray(estimate.output_level, dtype=float)
+        names = output_names if len(output_names) == level.size else [
+            f"output {i + 1}" for i in range(level.size)]
+        return cls(source=str(estimate.source),
+                   output_level={str(k): float(v) for k, v in zip(names, level)},
+                   n_averages=estimate.n_averages, assumptions=list(estimate.assumptions),
+                   dispersion=float(dispersion))
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain-JSON form."""
+        return {"source": self.source, "output_level": dict(self.output_level),
+                "n_averages": self.n_averages, "assumptions": list(self.assumptions),
+                "dispersion": self.dispersion}
+
+
+@dataclass
 class Result:
     """The outcome of one run of the pipeline."""
 
@@ -83,6 +129,9 @@ class Result:
     frf_fit: tuple[np.ndarray, np.ndarray, np.ndarray] | None = field(default=None, repr=False)
     """``(frequency_hz, measured, synthesized)`` over the analysed band, in the input's
     orientation (lines x outputs x inputs); synthesized from the physical modes."""
+    noise: NoiseInfo | None = None
+    """The noise model (source and level per output channel), ``None`` when the run did
+    not use one (``weighting="envelope"``)."""
 
     @property
     def physical_modes(self) -> list[IdentifiedMode]:

@@ -27,6 +27,12 @@ towards the data's own groups, but the physical centre cannot wander into a clou
 noise clusters, so a file of pure noise gives no physical cluster. The class whose centre
 is nearer the physical prototype is the physical one, and physicalness is the membership
 of that class.
+
+With a noise model (issue 13) the fourth feature is the reference mode's SNR against the
+noise (:func:`snr_feature`), which means the same on every file: about what fitting noise
+gives a spurious mode for noise, far above it for a mode of the data. Whatever the
+features, a cluster of one member or found by a minority of the replicates is never
+physical (:func:`vetoed`).
 """
 
 from __future__ import annotations
@@ -53,6 +59,61 @@ FEATURE_SCALE = np.array([0.3, 1.5, 1.0, 0.7])
 """Fixed standardisation of the features (about the spread of each class)."""
 
 CONTRIBUTION_RANGE = (-4.0, 0.5)
+
+SNR_FEATURE_NAME = "log10_snr2_per_parameter"
+"""Name of the fourth feature when the run has a noise model (see :func:`snr_feature`)."""
+
+SNR_RANGE = (-2.0, 6.0)
+"""Clip of :func:`snr_feature` (a reported feature; for the c-means with ``snr=True`` a
+clip at about the physical prototype, 2, keeps it from outweighing the others)."""
+
+
+SNR_PHYSICAL_PROTOTYPE = np.array([1.0, -5.0, -4.5, 1.5])
+"""Features of a clearly physical cluster with a noise model: as
+:data:`PHYSICAL_PROTOTYPE`, and an SNR^2 of 30 times what fitting noise gives a mode
+(the family's "clear" threshold, SNR 30, is SNR^2 / p = 15 to 225 for p = 4 to 60)."""
+
+SNR_NOISE_PROTOTYPE = np.array([0.4, -1.0, -1.5, 0.0])
+"""Features of a noise cluster with a noise model: as :data:`NOISE_PROTOTYPE`, and the
+SNR^2 that fitting noise gives a spurious mode, about its ``p`` parameters (ratio 1)."""
+
+SNR_FEATURE_SCALE = np.array([0.3, 1.5, 1.0, 0.5])
+"""Standardisation with the SNR feature (half a decade of SNR^2 per unit)."""
+
+MAJORITY = 0.5
+"""A cluster found by fewer than this share of the replicates (occurrence) is never
+physical: a mode of the data must be seen by most resamples of it."""
+
+
+def snr_feature(snr2: float, params: int) -> float:
+    """``log10(SNR^2 / p)`` clipped to :data:`SNR_RANGE`: a mode's whitened energy over
+    what fitting noise gives a spurious mode with ``p`` real parameters (about 1, i.e. 0,
+    for noise; the same meaning on every file)."""
+    ratio = max(float(snr2), 0.0) / max(float(params), 1.0)
+    return float(np.clip(np.log10(ratio + FLOOR), *SNR_RANGE))
+
+
+DETECTION_Z = 3.0
+"""A mode whose SNR^2 is below ``p + DETECTION_Z sqrt(2 p)`` is not detected: fitting noise
+gives a spurious mode about a chi-square with ``p`` degrees of freedom (mean ``p``, variance
+``2 p``); the same quantile as the order test."""
+
+
+def detection_threshold(params: int) -> float:
+    """SNR^2 a mode with ``params`` real parameters needs to stand out of the noise."""
+    p = float(max(params, 1))
+    return p + DETECTION_Z * float(np.sqrt(2.0 * p))
+
+
+def vetoed(
+    occurrence: float, n_members: int, snr2: float | None = None, params: int = 0
+) -> bool:
+    """Whether a cluster can never be physical whatever its features: one member, found
+    by a minority of the replicates (occurrence below :data:`MAJORITY`), or (with a noise
+    model) an SNR^2 below :func:`detection_threshold`."""
+    if int(n_members) <= 1 or float(occurrence) < MAJORITY:
+        return True
+    return snr2 is not None and float(snr2) < detection_threshold(params)
 
 FLOOR = 1e-12
 LOG_RANGE = (-8.0, 0.0)
@@ -102,17 +163,26 @@ def _memberships(X: np.ndarray, centres: np.ndarray, m: float) -> np.ndarray:
     return (inv / inv.sum(axis=1, keepdims=True)).T  # (c, n)
 
 
-def physicalness(features: np.ndarray, m: float = 2.0, anchor_weight: float = 1.0) -> np.ndarray:
+def physicalness(
+    features: np.ndarray,
+    m: float = 2.0,
+    anchor_weight: float = 1.0,
+    snr: bool = False,
+) -> np.ndarray:
     """Anchored fuzzy c-means membership of the physical class for each cluster.
 
     Parameters
     ----------
     features : ndarray, shape (n_clusters, 4)
-        :func:`cluster_features` of each cluster.
+        :func:`cluster_features` of each cluster (with ``snr``: its fourth feature
+        replaced by :func:`snr_feature`).
     m : float
         Fuzzifier.
     anchor_weight : float
         Copies of each prototype per cluster (1: the prototypes weigh as much as the data).
+    snr : bool
+        Use the prototypes and scales of the SNR feature (:data:`SNR_PHYSICAL_PROTOTYPE`,
+        :data:`SNR_NOISE_PROTOTYPE`, :data:`SNR_FEATURE_SCALE`).
 
     Returns
     -------
@@ -125,8 +195,12 @@ def physicalness(features: np.ndarray, m: float = 2.0, anchor_weight: float = 1.
     n = features.shape[0]
     if n == 0:
         return np.zeros(0)
-    X = features / FEATURE_SCALE
-    protos = np.vstack([PHYSICAL_PROTOTYPE, NOISE_PROTOTYPE]) / FEATURE_SCALE
+    if snr:
+        scale, phys_p, noise_p = SNR_FEATURE_SCALE, SNR_PHYSICAL_PROTOTYPE, SNR_NOISE_PROTOTYPE
+    else:
+        scale, phys_p, noise_p = FEATURE_SCALE, PHYSICAL_PROTOTYPE, NOISE_PROTOTYPE
+    X = features / scale
+    protos = np.vstack([phys_p, noise_p]) / scale
     copies = max(1, int(round(anchor_weight * n)))
     data = np.vstack([X, np.repeat(protos, copies, axis=0)])
     u0 = _memberships(data, protos, m)

@@ -148,6 +148,61 @@ def run_record_replicates(
         return gather(pmap(work, chunks), chunks, progress)
 
 
+def run_noise_replicates(
+    basis: subspace.RowBasis,
+    H_model: np.ndarray,
+    variance: np.ndarray,
+    n: int,
+    T: float,
+    seeds: np.ndarray,
+    line_weights: np.ndarray,
+    jobs: int | None,
+    progress: Callable[[int], None] | None = None,
+) -> list[bootstrap.ReplicateModes]:
+    """Parametric replicates: the reference model's FRF plus fresh noise of the noise model.
+
+    Replicate ``b`` identifies ``H_model + e_b`` with ``e_b`` complex Gaussian of variance
+    ``variance`` per line and entry (real and imaginary parts ``variance / 2`` each),
+    drawn from ``numpy.random.default_rng(seeds[b])``: the spread then reflects the noise
+    itself rather than one realization of it. Like :func:`run_record_replicates`, each
+    replicate forms its own Schur complement; the result does not depend on ``jobs``.
+
+    Parameters
+    ----------
+    H_model : ndarray, shape (N, ny, nu)
+        The reference model's FRF at the analysed lines (channel-scaled).
+    variance : ndarray, shape (N, ny, nu)
+        Noise variance in the same units.
+    seeds : ndarray of int, shape (B,)
+        One seed per replicate.
+    line_weights : ndarray, shape (N,)
+        Line weights of every replicate's fit.
+    basis, n, T, jobs, progress
+        As in :func:`run_replicates`.
+    """
+    B = len(seeds)
+    ny = H_model.shape[1]
+    m = basis.q * ny
+    n_jobs = worker_count(jobs, B, replicate_flops(m, n) * B)
+    std = np.sqrt(np.asarray(variance, float) / 2.0)
+
+    def draw(b: int) -> np.ndarray:
+        g = np.random.default_rng(int(seeds[b])).standard_normal((2,) + H_model.shape)
+        return H_model + std * (g[0] + 1j * g[1])
+
+    def work(r: range) -> list[bootstrap.ReplicateModes]:
+        Hb = [draw(b) for b in r]
+        S = np.stack([subspace.single_schur(basis, h, line_weights) for h in Hb])
+        return bootstrap.replicates_from_schur(
+            S, n, basis, T, ny,
+            qr_fallback=lambda i: subspace.projected_output_qr(basis, Hb[i], line_weights),
+        )
+
+    chunks = replicate_chunks(B, m, n)
+    with thread_map(n_jobs) as pmap:
+        return gather(pmap(work, chunks), chunks, progress)
+
+
 def band_records(
     records: np.ndarray | None,
     frequency: np.ndarray,
@@ -169,18 +224,19 @@ def band_records(
         The analysed lines (Hz), a subset of ``frequency``.
     reciprocal : bool
         Whether inputs and outputs were swapped (the records are transposed likewise).
-    resample : {"auto", "lines", "records"}
-        What the replicates resample (``"auto"``: records when there are two or more).
+    resample : {"auto", "lines", "records", "noise"}
+        What the replicates resample (``"auto"``: records when there are two or more;
+        ``"noise"``: never records).
     source : str, optional
         The data's file, named in errors.
     """
-    if resample not in ("auto", "lines", "records"):
+    if resample not in ("auto", "lines", "records", "noise"):
         raise ValueError(f"unknown resample {resample!r}")
     usable = records is not None and records.shape[0] >= 2
     if resample == "records" and not usable:
         raise InputError("resampling records needs at least two records (/records/frf)",
                          source)
-    if resample == "lines" or not usable:
+    if resample in ("lines", "noise") or not usable:
         return None
     rec = records[:, np.isin(frequency, band_frequency)]
     return np.ascontiguousarray(rec.transpose(0, 1, 3, 2)) if reciprocal else rec
