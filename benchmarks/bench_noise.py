@@ -90,7 +90,7 @@ def run(seeds: list[int], n: int, max_lines: int | None) -> tuple[dict, dict]:
     )
     info = {"skipped": 0, "files": 0, "by_kind": defaultdict(int), "nd_calibrated": []}
     for seed in seeds:
-        for s, i in systems(fam, seed, n):
+        for s, _ in systems(fam, seed, n):
             if s is None:
                 info["skipped"] += 1
                 continue
@@ -156,8 +156,8 @@ def run(seeds: list[int], n: int, max_lines: int | None) -> tuple[dict, dict]:
                     (N_RECORDS, *H.shape)
                 ) + 1j * rng.standard_normal((N_RECORDS, *H.shape))
                 recs = H[None] + np.sqrt(N_RECORDS) * sig[None] * e / np.sqrt(2)
-                # the true FRF under the noise: undo the file's own noise draw is not possible, so the
-                # records are made around H (the noisy FRF) as if H were exact; the truth is still sig
+                # the file's own noise draw cannot be undone, so the records are made around H
+                # (the noisy FRF) as if H were exact; the truth is still sig
                 t0 = time.perf_counter()
                 add("records", noise.records_variance(recs), time.perf_counter() - t0)
                 t0 = time.perf_counter()
@@ -183,7 +183,8 @@ def table(acc: dict) -> str:
         "data",
     ]
     rows = [
-        "| noise kind | source | entries (files) | ratio p10 | ratio median | ratio p90 | in [0.8, 1.25] | per-line factor | at peaks | s/file |",
+        "| noise kind | source | entries (files) | ratio p10 | ratio median | ratio p90 | in "
+        "[0.8, 1.25] | per-line factor | at peaks | s/file |",
         "|---|---|---|---|---|---|---|---|---|---|",
     ]
     for k in kinds:
@@ -199,7 +200,8 @@ def table(acc: dict) -> str:
             inside = np.mean((r >= 0.8) & (r <= 1.25))
             rows.append(
                 f"| {k} | {src} | {r.size} ({c['files']}) | {p10:.3f} | {p50:.3f} | {p90:.3f} | "
-                f"{100 * inside:.0f} % | {np.exp(np.median(d)):.3f} | {np.exp(np.median(dp)):.3f} | "
+                f"{100 * inside:.0f} % | {np.exp(np.median(d)):.3f} | "
+                f"{np.exp(np.median(dp)):.3f} | "
                 f"{c['secs'] / c['files']:.3f} |"
             )
     return "\n".join(rows)
@@ -225,7 +227,8 @@ def main() -> int:
     nd_txt = ", ".join(f"{r}->{c:.1f}" for r, c in nd)
     text = (
         f"Seeds {a.seeds}, {a.n} draws each: {info['files']} systems "
-        f"({dict(info['by_kind'])}), {info['skipped']} skipped (generator failure); {wall:.0f} s.\n\n"
+        f"({dict(info['by_kind'])}), {info['skipped']} skipped (generator failure); "
+        f"{wall:.0f} s.\n\n"
         + table(acc)
         + f"\n\nh1 files, true records R -> n_d calibrated on the data alone: {nd_txt}\n"
     )

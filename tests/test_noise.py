@@ -66,7 +66,8 @@ def proportional(
 
 
 def h1_test(H: np.ndarray, level: float, n_rec: int, seed: int):
-    """H1 from ``n_rec`` records of random force; (H1, coherence, per-record ratios or None, true std)."""
+    """H1 from ``n_rec`` records of random force; (H1, coherence, per-record ratios or None, "
+    "true std)."""
     rng = np.random.default_rng(seed)
     N, ny, nu = H.shape
     U = cnormal(rng, (n_rec, N, nu))

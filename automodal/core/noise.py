@@ -635,7 +635,8 @@ def estimate_noise(
         elif rec is not None and rec.shape[0] > nu:
             nd_used = float(rec.shape[0])
             notes.append(
-                f"H1 law with n_averages = {nd_used:g}, the number of records (the FRF is not their mean)"
+                f"H1 law with n_averages = {nd_used:g}, the number of records (the FRF is not "
+                "their mean)"
             )
         else:
             nd_used = _calibrated_averages(H, coh)
@@ -645,26 +646,32 @@ def estimate_noise(
             )
         if nu > 1:
             notes.append(
-                "several inputs: assumed uncorrelated and of equal power (multiple coherence per output)"
+                "several inputs: assumed uncorrelated and of equal power (multiple coherence "
+                "per output)"
             )
         var = coherence_variance(H, coh, nd_used)
     elif rec is not None and rec.shape[0] >= 3 and H.shape[2] == 1:
         var = ratio_records_variance(rec, H)
         source = "records"
         notes.append(
-            f"the FRF is not the mean of its {rec.shape[0]} records: taken as H1 of single-input ratio "
-            "records under random force (median-based, follows the force power, not its realization)"
+            f"the FRF is not the mean of its {rec.shape[0]} records: taken as H1 of "
+            "single-input ratio "
+            "records under random force (median-based, follows the force power, not its "
+            "realization)"
         )
     else:
         var, a, b = data_variance(H)
         source = "data"
         notes.append(
-            f"local polynomial (degree {LOCAL_DEGREE}, {2 * LOCAL_HALF_WIDTH + 1} lines) and a smooth model "
-            "a + b|H|^2 per entry (floor plus proportional noise), independent noise on neighbouring lines"
+            f"local polynomial (degree {LOCAL_DEGREE}, {2 * LOCAL_HALF_WIDTH + 1} lines) and "
+            "a smooth model "
+            "a + b|H|^2 per entry (floor plus proportional noise), independent noise on "
+            "neighbouring lines"
         )
         if rec is not None:
             notes.append(
-                "records ignored (fewer than 3, or several inputs with an FRF that is not their mean)"
+                "records ignored (fewer than 3, or several inputs with an FRF that is not "
+                "their mean)"
             )
     var = np.where(np.isfinite(var), var, np.inf)
     var = np.maximum(np.minimum(var, np.finfo(float).max), floor)
