@@ -464,6 +464,41 @@ class Trashbox:
 
 
 @dataclass
+class ReportNoise:
+    """The ``noise`` section: the noise model a run used (only when it used one, with
+    ``settings.weighting = "noise"``): its ``source`` (``records``, ``coherence`` or
+    ``data``), the relative noise level of each output channel, the number of averages the
+    coherence law took, what was assumed, and the reference model's ``dispersion`` (its
+    whitened residual over its degrees of freedom)."""
+
+    source: str
+    output_level: dict[str, Number]
+    n_averages: Number | None = None
+    assumptions: list[str] = field(default_factory=list)
+    dispersion: Number = 1.0
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    @classmethod
+    def from_dict(cls, obj: Any, where: str = "noise") -> ReportNoise:
+        f = _Fields(obj, where)
+        levels = f.req("output_level", _dict)
+        return cls(
+            source=f.req("source", _str),
+            output_level={str(k): _number(v, f"{where}.output_level.{k}")
+                          for k, v in levels.items()},
+            n_averages=f.opt("n_averages", _optional(_number)),
+            assumptions=f.opt("assumptions", _strings) or [],
+            dispersion=f.opt("dispersion", _number) or 1.0,
+            extra=f.extra(),
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"source": self.source, "output_level": dict(self.output_level),
+                "n_averages": self.n_averages, "assumptions": list(self.assumptions),
+                "dispersion": self.dispersion, **self.extra}
+
+
+@dataclass
 class ReportSummary:
     """The ``summary`` section.
 
@@ -590,6 +625,8 @@ class Report:
     warnings : list of str
     monitoring : MonitoringBlock or None
         The block a baseline check adds (see :mod:`automodal.app.monitoring`).
+    noise : ReportNoise or None
+        The noise model, when the run used one.
     extra : dict
         Top-level keys of a later writer.
     arrays : ReportArrays
@@ -604,6 +641,7 @@ class Report:
     summary: ReportSummary
     warnings: list[str]
     monitoring: MonitoringBlock | None = None
+    noise: ReportNoise | None = None
     extra: dict[str, Any] = field(default_factory=dict)
     arrays: ReportArrays = field(default_factory=ReportArrays, compare=False, repr=False)
 
@@ -684,6 +722,8 @@ class Report:
             },
             "warnings": all_warnings,
         }
+        if result.noise is not None:
+            raw["noise"] = result.noise.to_dict()
         non_finite: list[str] = []
         clean = json_safe(raw, "", non_finite)
         clean["warnings"].extend(non_finite_warnings(non_finite))
@@ -719,6 +759,7 @@ class Report:
             summary=ReportSummary.from_dict(f.req("summary", _dict)),
             warnings=f.req("warnings", _strings),
             monitoring=f.opt("monitoring", _optional(MonitoringBlock.from_dict)),
+            noise=f.opt("noise", _optional(ReportNoise.from_dict)),
             extra=f.extra(),
         )
 
@@ -733,6 +774,8 @@ class Report:
             "summary": self.summary.to_dict(),
             "warnings": list(self.warnings),
         })
+        if self.noise is not None:
+            out["noise"] = self.noise.to_dict()
         if self.monitoring is not None:
             out["monitoring"] = self.monitoring.to_dict()
         out.update(self.extra)

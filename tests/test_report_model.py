@@ -321,3 +321,24 @@ def test_match_is_a_pure_array_function():
     assert pairs == [(0, 0), (1, 1)]
     assert match(np.array([5.0]), np.array([9.0]), np.full((1, 1), np.nan),
                  frequency_weight=0.05, max_relative_shift=0.15, min_mac=0.5) == []
+
+
+def test_a_run_with_the_noise_model_reports_it(identified, tmp_path):
+    _, data, path = identified
+    result = identify(data, Settings(n_bootstrap=20, seed=1, jobs=1, weighting="noise"))
+    assert result.noise is not None
+    for name in ("n.json", "n.h5"):
+        write_report(tmp_path / name, result, data, path)
+        content = read_report(tmp_path / name)
+        assert schema_errors(content) == []
+        noise = content["noise"]
+        assert noise["source"] == "data"
+        assert set(noise["output_level"]) == set(data.output_names)
+        assert all(0 < v < 0.1 for v in noise["output_level"].values())  # 1 % noise
+        assert Report.from_dict(content).noise.source == "data"
+    bad = copy.deepcopy(content)
+    bad["noise"]["source"] = "guess"
+    assert any("noise" in e for e in schema_errors(bad))
+    plain = read_report(tmp_path / "n.json")
+    plain.pop("noise")
+    assert Report.from_dict(plain).noise is None
