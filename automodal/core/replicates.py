@@ -127,23 +127,40 @@ def run_record_replicates(
     basis, n, T, jobs, progress
         As in :func:`run_replicates`.
     """
-    B = weights.shape[0]
-    ny = records.shape[2]
-    m = basis.q * ny
-    n_jobs = worker_count(jobs, B, replicate_flops(m, n) * B)
-
     def average(b: int) -> np.ndarray:
         return np.einsum("r,rkij->kij", weights[b] / weights[b].sum(), records)
 
+    return _own_schur_replicates(
+        average, weights.shape[0], records.shape[2], basis, n, T, line_weights, jobs, progress
+    )
+
+
+def _own_schur_replicates(
+    frf_of: Callable[[int], np.ndarray],
+    n_replicates: int,
+    ny: int,
+    basis: subspace.RowBasis,
+    n: int,
+    T: float,
+    line_weights: np.ndarray,
+    jobs: int | None,
+    progress: Callable[[int], None] | None,
+) -> list[bootstrap.ReplicateModes]:
+    """Replicates whose FRFs ``frf_of(b)`` each form their own Schur complement (the Gram
+    sums are not linear in the FRF), stacked per chunk as in :func:`run_replicates`; the
+    result does not depend on ``jobs``."""
+    m = basis.q * ny
+    n_jobs = worker_count(jobs, n_replicates, replicate_flops(m, n) * n_replicates)
+
     def work(r: range) -> list[bootstrap.ReplicateModes]:
-        Hb = [average(b) for b in r]
+        Hb = [frf_of(b) for b in r]
         S = np.stack([subspace.single_schur(basis, h, line_weights) for h in Hb])
         return bootstrap.replicates_from_schur(
             S, n, basis, T, ny,
             qr_fallback=lambda i: subspace.projected_output_qr(basis, Hb[i], line_weights),
         )
 
-    chunks = replicate_chunks(B, m, n)
+    chunks = replicate_chunks(n_replicates, m, n)
     with thread_map(n_jobs) as pmap:
         return gather(pmap(work, chunks), chunks, progress)
 
@@ -180,27 +197,15 @@ def run_noise_replicates(
     basis, n, T, jobs, progress
         As in :func:`run_replicates`.
     """
-    B = len(seeds)
-    ny = H_model.shape[1]
-    m = basis.q * ny
-    n_jobs = worker_count(jobs, B, replicate_flops(m, n) * B)
     std = np.sqrt(np.asarray(variance, float) / 2.0)
 
     def draw(b: int) -> np.ndarray:
         g = np.random.default_rng(int(seeds[b])).standard_normal((2,) + H_model.shape)
         return H_model + std * (g[0] + 1j * g[1])
 
-    def work(r: range) -> list[bootstrap.ReplicateModes]:
-        Hb = [draw(b) for b in r]
-        S = np.stack([subspace.single_schur(basis, h, line_weights) for h in Hb])
-        return bootstrap.replicates_from_schur(
-            S, n, basis, T, ny,
-            qr_fallback=lambda i: subspace.projected_output_qr(basis, Hb[i], line_weights),
-        )
-
-    chunks = replicate_chunks(B, m, n)
-    with thread_map(n_jobs) as pmap:
-        return gather(pmap(work, chunks), chunks, progress)
+    return _own_schur_replicates(
+        draw, len(seeds), H_model.shape[1], basis, n, T, line_weights, jobs, progress
+    )
 
 
 def band_records(
