@@ -205,11 +205,11 @@ def _identify(data: FRFData, s: Settings, progress: Callable[[int], None] | None
         p.z, p.Hs, p.scales, p.line_weights, choice.reference, p.T,
         (float(p.omega[0]), float(p.omega[-1])), s.zeta_max, s.coalescence, p.window_decay,
     )
-    ref_dispersion = 1.0
+    ref_dispersion, H_ref = 1.0, None
     if p.variance is not None:
-        ref_dispersion = whitening.dispersion(ref.modal.frequency_response(p.z), p.Hs,
-                                              p.variance, choice.reference)
-    reps = _replicates(p, s, ref, choice.reference, progress, warnings, ref_dispersion)
+        H_ref = ref.modal.frequency_response(p.z)
+        ref_dispersion = whitening.dispersion(H_ref, p.Hs, p.variance, choice.reference)
+    reps = _replicates(p, s, ref, choice.reference, progress, warnings, ref_dispersion, H_ref)
     clusters = reference.cluster_against_reference(ref, reps, s.n_bootstrap, s.threshold)
     snr2 = None
     if p.variance is not None:
@@ -249,9 +249,11 @@ def _replicates(
     progress: Callable[[int], None] | None,
     warnings: list[str],
     dispersion: float = 1.0,
+    H_ref: np.ndarray | None = None,
 ) -> replicates.ReplicatePoles:
     """The bootstrap: record replicates when the data have repeated records (and
-    ``s.resample`` allows), else frequency-line replicates; all their modes stacked."""
+    ``s.resample`` allows), noise replicates around the reference model's FRF ``H_ref``
+    with the noise model, else frequency-line replicates; all their modes stacked."""
     rng = np.random.default_rng(s.seed)
     records = replicates.band_records(
         p.data.records, p.data.frequency, p.frequency, p.reciprocal, s.resample, p.data.source
@@ -266,11 +268,10 @@ def _replicates(
             f"bootstrap over the {records.shape[0]} repeated records (each replicate averages"
             " a resample of them): the spread reflects the records' own noise"
         )
-    elif s.resample == "noise" and p.variance is not None:
+    elif s.resample == "noise" and p.variance is not None and H_ref is not None:
         seeds = rng.integers(0, 2**63 - 1, size=s.n_bootstrap)
-        H_model = ref.modal.frequency_response(p.z)
         reps = replicates.run_noise_replicates(
-            ref.basis, H_model, p.variance * dispersion, n, p.T, seeds, p.line_weights,
+            ref.basis, H_ref, p.variance * dispersion, n, p.T, seeds, p.line_weights,
             s.jobs, progress,
         )
         warnings.append(
