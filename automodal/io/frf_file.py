@@ -37,7 +37,6 @@ from automodal.io.header import (
     read_header,
     write_header,
 )
-from automodal.io.limits import check_is_file
 from automodal.io.refusal import Refused, read_refusing
 
 __all__ = ["FORMAT_NAME", "FORMAT_VERSION", "read_frf", "write_frf"]
@@ -80,7 +79,6 @@ def read_frf(path: str | os.PathLike[str]) -> FRFData:
 
 def _read(path: Path, source: str) -> FRFData:
     """Open, check and read the whole file (raises :class:`Refused` on a bad file)."""
-    check_is_file(path, source)
     with open_hdf5(path) as f:
         quantity = read_header(f.attrs)
         frf = _read_frf_array(f)

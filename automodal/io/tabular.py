@@ -29,7 +29,7 @@ import numpy as np
 
 from automodal.errors import InputError
 from automodal.frfdata import QUANTITIES, FRFData
-from automodal.io.limits import check_is_file, check_not_real_valued, check_size, check_text_size
+from automodal.io.limits import check_not_real_valued, check_size, check_text_size
 from automodal.io.refusal import read_refusing
 
 __all__ = ["read_csv", "read_npz"]
@@ -123,7 +123,6 @@ def _read_csv(path: Path, source: str) -> FRFData:
 
 def _read_text(path: Path, source: str) -> str:
     """The file as UTF-8 text (a leading byte-order mark removed)."""
-    check_is_file(path, source)
     check_text_size(path, source)
     try:
         return path.read_text(encoding="utf-8-sig")
@@ -218,7 +217,6 @@ def read_npz(path: str | os.PathLike[str]) -> FRFData:
 
 def _read_npz(p: Path, source: str) -> FRFData:
     """:func:`read_npz` (raises :class:`InputError` naming ``source`` on a bad file)."""
-    check_is_file(p, source)
     try:
         loaded = np.load(p, allow_pickle=False)
         if not isinstance(loaded, np.lib.npyio.NpzFile):
