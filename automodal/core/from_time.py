@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 
 from automodal.errors import InputError
-from automodal.frfdata import QUANTITIES, FRFData
+from automodal.frfdata import FRFData, quantity_problem
 from automodal.timedata import TimeSeries
 
 __all__ = ["EXCITATIONS", "USABLE_FRACTION", "as_frfdata", "frfdata_from_time"]
@@ -163,8 +163,9 @@ def frfdata_from_time(
     quantity = attributes.pop("quantity", None)
     assumed = quantity is None
     quantity = DEFAULT_QUANTITY if assumed else str(quantity)
-    if quantity not in QUANTITIES:
-        raise ValueError(f"unknown quantity {quantity!r} (expected one of {', '.join(QUANTITIES)})")
+    problem = quantity_problem(quantity)
+    if problem:
+        raise ValueError(problem)
 
     hits = None
     if excitation == "auto":

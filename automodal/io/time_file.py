@@ -168,8 +168,9 @@ def write_time(path: str | os.PathLike[str], ts: TimeSeries) -> None:
         If an attribute value cannot be stored in HDF5.
     """
     quantity = ts.attributes.get("quantity")
-    if quantity is not None and quantity_problem(quantity):
-        raise ValueError(quantity_problem(quantity))
+    problem = None if quantity is None else quantity_problem(quantity)
+    if problem:
+        raise ValueError(problem)
     strings = h5py.string_dtype()
     with atomic_path(path) as tmp, h5py.File(tmp, "w") as f:
         write_header(f, ts.attributes, quantity)
