@@ -61,7 +61,8 @@ def as_frfdata(data: FRFData | TimeSeries, **options: Any) -> FRFData:
         :func:`frfdata_from_time` with its choices (segment length, references, windows)
         in ``attributes["time_analysis"]``, so that the report shows them, the decay rate
         of its window (1/s, 0 without one) in ``attributes["window_decay_per_s"]``, so that
-        the pipeline takes it out of the damping, and the series' ``source``.
+        the pipeline takes it out of the damping, and the series' ``source`` (which
+        :func:`frfdata_from_time` keeps).
 
     Raises
     ------
@@ -82,7 +83,6 @@ def as_frfdata(data: FRFData | TimeSeries, **options: Any) -> FRFData:
     decay = info.get("lag_window_decay_per_s") or info.get("exponential_decay_per_s") or 0.0
     frf.attributes["time_analysis"] = info
     frf.attributes["window_decay_per_s"] = float(decay)
-    frf.source = data.source
     return frf
 
 
