@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 
 from automodal.errors import InputError
-from automodal.frfdata import QUANTITIES, FRFData
+from automodal.frfdata import FRFData, quantity_problem
 from automodal.timedata import TimeSeries
 
 __all__ = ["EXCITATIONS", "USABLE_FRACTION", "as_frfdata", "frfdata_from_time"]
@@ -61,7 +61,8 @@ def as_frfdata(data: FRFData | TimeSeries, **options: Any) -> FRFData:
         :func:`frfdata_from_time` with its choices (segment length, references, windows)
         in ``attributes["time_analysis"]``, so that the report shows them, the decay rate
         of its window (1/s, 0 without one) in ``attributes["window_decay_per_s"]``, so that
-        the pipeline takes it out of the damping, and the series' ``source``.
+        the pipeline takes it out of the damping, and the series' ``source`` (which
+        :func:`frfdata_from_time` keeps).
 
     Raises
     ------
@@ -82,7 +83,6 @@ def as_frfdata(data: FRFData | TimeSeries, **options: Any) -> FRFData:
     decay = info.get("lag_window_decay_per_s") or info.get("exponential_decay_per_s") or 0.0
     frf.attributes["time_analysis"] = info
     frf.attributes["window_decay_per_s"] = float(decay)
-    frf.source = data.source
     return frf
 
 
@@ -163,8 +163,9 @@ def frfdata_from_time(
     quantity = attributes.pop("quantity", None)
     assumed = quantity is None
     quantity = DEFAULT_QUANTITY if assumed else str(quantity)
-    if quantity not in QUANTITIES:
-        raise ValueError(f"unknown quantity {quantity!r} (expected one of {', '.join(QUANTITIES)})")
+    problem = quantity_problem(quantity)
+    if problem:
+        raise ValueError(problem)
 
     hits = None
     if excitation == "auto":

@@ -37,7 +37,6 @@ from automodal.io.header import (
     read_header,
     write_header,
 )
-from automodal.io.limits import check_is_file
 from automodal.io.refusal import Refused, read_refusing
 
 __all__ = ["FORMAT_NAME", "FORMAT_VERSION", "read_frf", "write_frf"]
@@ -72,15 +71,14 @@ def read_frf(path: str | os.PathLike[str]) -> FRFData:
         ``version``, a ``window_decay_per_s`` attribute that is not a finite number >= 0,
         a dataset of more than :data:`automodal.io.limits.MAX_VALUES` numbers, refused
         before it is read, ...). The message is one line and names the file. Time-series
-        input (``/time`` without ``/frf``) is refused too: this reader does not support it
-        yet.
+        input (``/time`` without ``/frf``) is refused too: it is read by
+        :func:`automodal.io.time_file.read_time` (and :func:`automodal.io.readers.read_any`).
     """
     return read_refusing(_read, path)
 
 
 def _read(path: Path, source: str) -> FRFData:
     """Open, check and read the whole file (raises :class:`Refused` on a bad file)."""
-    check_is_file(path, source)
     with open_hdf5(path) as f:
         quantity = read_header(f.attrs)
         frf = _read_frf_array(f)
@@ -111,8 +109,8 @@ def _read_frf_array(f: h5py.File) -> np.ndarray:
     if ds is None:
         if "time" in f:
             raise Refused(
-                "time-series input (/time) is not supported by this reader yet; "
-                "the file needs FRFs in /frf"
+                "time-series input (/time) is not supported by this reader (read it with "
+                "automodal.io.time_file.read_time); the file needs FRFs in /frf"
             )
         raise Refused("no /frf dataset and no /time group: not an FRF file")
     return complex_array(ds, "/frf", ndim=3, axes="(n_freq, n_outputs, n_inputs)")

@@ -58,25 +58,20 @@ def open_hdf5(path: Path) -> h5py.File:
     except OSError as exc:
         if path.stat().st_size == 0:
             raise Refused("the file is empty (0 bytes), not an HDF5 file") from exc
-        if not _looks_like_hdf5(path):
+        if not has_hdf5_signature(path, unreadable=True):
             raise Refused("not an HDF5 file") from exc
         raise Refused(f"damaged or truncated HDF5 file: {describe(exc)}") from exc
 
 
-def _looks_like_hdf5(path: Path) -> bool:
-    """Whether ``path`` carries an HDF5 signature (True when that cannot be told)."""
-    try:
-        return bool(h5py.is_hdf5(path))
-    except READ_ERRORS:
-        return True
-
-
-def has_hdf5_signature(path: Path) -> bool:
-    """Whether ``path`` is an HDF5 file, by its signature (False when unreadable).
+def has_hdf5_signature(path: Path, unreadable: bool = False) -> bool:
+    """Whether ``path`` is an HDF5 file, by its signature.
 
     Parameters
     ----------
     path : Path
+    unreadable : bool
+        The answer when the signature cannot be read (False: not known to be HDF5; True,
+        for a refusal that should not call a damaged file "not HDF5").
 
     Returns
     -------
@@ -84,8 +79,8 @@ def has_hdf5_signature(path: Path) -> bool:
     """
     try:
         return bool(h5py.is_hdf5(path))
-    except (OSError, ValueError):
-        return False
+    except READ_ERRORS:
+        return unreadable
 
 
 def group(parent: h5py.Group, name: str) -> h5py.Group | None:

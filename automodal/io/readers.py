@@ -162,9 +162,8 @@ def _read_in_child(path: str | os.PathLike[str], timeout: float) -> FRFData | Ti
 
 
 def _child_reads(path: str | os.PathLike[str], send: Any) -> None:
-    """In the child: read, and send ``("data", FRFData or TimeSeries)``, ``("refused",
-    problem, path)``
-    or ``("error", exception)`` back."""
+    """In the child: read, and send ``("data", FRFData or TimeSeries)``,
+    ``("refused", problem, path)`` or ``("error", exception)`` back."""
     answer: tuple[Any, ...]
     try:
         answer = ("data", _read_by_suffix(path))

@@ -3,8 +3,8 @@
 A reader's inner function takes ``(path, source)`` and raises :class:`Refused` (a problem
 with the file, without its name), :class:`~automodal.errors.InputError` (already naming the
 file), or lets a library error escape (h5py, numpy, zipfile, pyuff). :func:`read_refusing`
-runs it and turns the first and the last into an :class:`~automodal.errors.InputError` that
-names the file, in one line, never a traceback.
+refuses a path that is not a file, runs it, and turns the first and the last into an
+:class:`~automodal.errors.InputError` that names the file, in one line, never a traceback.
 """
 
 from __future__ import annotations
@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import TypeVar
 
 from automodal.errors import InputError
+from automodal.io.limits import check_is_file
 
 __all__ = ["READ_ERRORS", "Refused", "describe", "read_refusing"]
 
@@ -39,13 +40,14 @@ class Refused(Exception):
 
 
 def read_refusing(read: Callable[[Path, str], _T], path: str | os.PathLike[str]) -> _T:
-    """Run ``read(Path(path), str(path))``, turning every refusal or read failure into one
-    :class:`~automodal.errors.InputError` naming the file.
+    """Refuse a path that is not a file, then run ``read(Path(path), str(path))``, turning
+    every refusal or read failure into one :class:`~automodal.errors.InputError` naming the
+    file.
 
     Parameters
     ----------
     read : callable
-        The reader's inner function, ``read(path, source)``.
+        The reader's inner function, ``read(path, source)``; ``path`` is an existing file.
     path : str or path-like
         The file.
 
@@ -56,12 +58,15 @@ def read_refusing(read: Callable[[Path, str], _T], path: str | os.PathLike[str])
     Raises
     ------
     InputError
-        For a :class:`Refused` problem, an :class:`InputError` raised by ``read`` (as it
+        For a missing path or a folder (:func:`~automodal.io.limits.check_is_file`), a
+        :class:`Refused` problem, an :class:`InputError` raised by ``read`` (as it
         is), or one of :data:`READ_ERRORS` (``"cannot read the file: ..."``).
     """
     source = str(path)
+    p = Path(path)
     try:
-        return read(Path(path), source)
+        check_is_file(p, source)
+        return read(p, source)
     except Refused as exc:
         raise InputError(exc.problem, source) from None
     except READ_ERRORS as exc:

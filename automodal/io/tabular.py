@@ -28,9 +28,9 @@ from typing import IO, Any
 import numpy as np
 
 from automodal.errors import InputError
-from automodal.frfdata import QUANTITIES, FRFData
-from automodal.io.limits import check_is_file, check_not_real_valued, check_size, check_text_size
-from automodal.io.refusal import read_refusing
+from automodal.frfdata import QUANTITIES, FRFData, quantity_problem
+from automodal.io.limits import check_not_real_valued, check_size, check_text_size
+from automodal.io.refusal import describe, read_refusing
 
 __all__ = ["read_csv", "read_npz"]
 
@@ -123,7 +123,6 @@ def _read_csv(path: Path, source: str) -> FRFData:
 
 def _read_text(path: Path, source: str) -> str:
     """The file as UTF-8 text (a leading byte-order mark removed)."""
-    check_is_file(path, source)
     check_text_size(path, source)
     try:
         return path.read_text(encoding="utf-8-sig")
@@ -175,10 +174,10 @@ def _pair_name(real_header: str, k: int) -> str:
 
 
 def _known_quantity(value: str, where: str, source: str) -> str:
-    """``value`` if it is a known quantity, else refuse."""
-    if value not in QUANTITIES:
-        raise InputError(f"{where}: unknown quantity {value!r} (expected one of "
-                         f"{', '.join(QUANTITIES)})", source)
+    """``value`` if it is a known quantity, else refuse (``where`` says where it was)."""
+    problem = quantity_problem(value)
+    if problem:
+        raise InputError(f"{where}: {problem}", source)
     return value
 
 
@@ -218,7 +217,6 @@ def read_npz(path: str | os.PathLike[str]) -> FRFData:
 
 def _read_npz(p: Path, source: str) -> FRFData:
     """:func:`read_npz` (raises :class:`InputError` naming ``source`` on a bad file)."""
-    check_is_file(p, source)
     try:
         loaded = np.load(p, allow_pickle=False)
         if not isinstance(loaded, np.lib.npyio.NpzFile):
@@ -230,8 +228,7 @@ def _read_npz(p: Path, source: str) -> FRFData:
     except InputError:
         raise
     except Exception as exc:  # noqa: BLE001 - zipfile, zlib and numpy raise many kinds
-        problem = " ".join(str(exc).split()) or type(exc).__name__
-        raise InputError(f"cannot read as an .npz archive: {problem}", source) from exc
+        raise InputError(f"cannot read as an .npz archive: {describe(exc)}", source) from exc
     missing = [key for key in ("frequency", "frf") if key not in arrays]
     if missing:
         found = ", ".join(sorted(keys)) or "none"

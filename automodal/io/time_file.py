@@ -20,7 +20,6 @@ from automodal.frfdata import quantity_problem
 from automodal.io.atomic import atomic_path
 from automodal.io.hdf5 import check_dataset_size, dataset, group, open_hdf5, plain, string_list
 from automodal.io.header import free_attributes, read_header, write_header
-from automodal.io.limits import check_is_file
 from automodal.io.refusal import Refused, read_refusing
 from automodal.timedata import TimeSeries
 
@@ -67,7 +66,6 @@ def read_time(path: str | os.PathLike[str]) -> TimeSeries:
 
 def _read(path: Path, source: str) -> TimeSeries:
     """Open, check and read the ``/time`` group (raises :class:`Refused` on a bad file)."""
-    check_is_file(path, source)
     with open_hdf5(path) as f:
         quantity = read_header(f.attrs)
         time = group(f, "time")
@@ -170,8 +168,9 @@ def write_time(path: str | os.PathLike[str], ts: TimeSeries) -> None:
         If an attribute value cannot be stored in HDF5.
     """
     quantity = ts.attributes.get("quantity")
-    if quantity is not None and quantity_problem(quantity):
-        raise ValueError(quantity_problem(quantity))
+    problem = None if quantity is None else quantity_problem(quantity)
+    if problem:
+        raise ValueError(problem)
     strings = h5py.string_dtype()
     with atomic_path(path) as tmp, h5py.File(tmp, "w") as f:
         write_header(f, ts.attributes, quantity)

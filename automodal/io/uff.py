@@ -17,7 +17,7 @@ import numpy as np
 
 from automodal.errors import InputError
 from automodal.frfdata import FRFData
-from automodal.io.limits import check_is_file, check_not_real_valued, check_text_size
+from automodal.io.limits import check_not_real_valued, check_text_size
 from automodal.io.refusal import describe, read_refusing
 
 __all__ = ["FUNCTION_TYPES", "direction_name", "read_uff"]
@@ -113,7 +113,6 @@ def read_uff(path: str | os.PathLike[str]) -> FRFData:
 
 def _read_uff(p: Path, source: str) -> FRFData:
     """:func:`read_uff` (raises :class:`InputError` naming ``source`` on a bad file)."""
-    check_is_file(p, source)
     check_text_size(p, source)
     sets = _read_sets(p, source)
     for number, dset in sets:
