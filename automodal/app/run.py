@@ -112,6 +112,7 @@ def run_file(
     baseline_path: str | None = None,
     thresholds: Thresholds | None = None,
     progress: Callable[[int], None] | None = None,
+    sha256: str | None = None,
 ) -> RunOutcome:
     """Identify one input file and write its reports.
 
@@ -131,6 +132,9 @@ def run_file(
         Of the baseline check.
     progress : callable, optional
         Called with the number of bootstrap replicates done since the last call.
+    sha256 : str, optional
+        The SHA-256 of the input when the caller has hashed it already (see
+        :func:`automodal.io.report.build_report`); default: hashed here.
 
     Returns
     -------
@@ -148,7 +152,7 @@ def run_file(
     check_jobs(settings.jobs)
     data = read_input(path)
     result = identify(data, settings, progress=progress)
-    report = build_report(result, data, input_path=path)
+    report = build_report(result, data, input_path=path, sha256=sha256)
     check = None
     if baseline is not None:
         from automodal.app.monitoring import attach_monitoring

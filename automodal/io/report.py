@@ -84,7 +84,10 @@ class _Refused(Exception):
 
 
 def build_report(
-    result: Result, data: FRFData, input_path: str | os.PathLike[str] | None = None
+    result: Result,
+    data: FRFData,
+    input_path: str | os.PathLike[str] | None = None,
+    sha256: str | None = None,
 ) -> Report:
     """The report of one run (see :meth:`Report.from_result`), its input file hashed.
 
@@ -98,6 +101,9 @@ def build_report(
         The file ``data`` was read from; default ``data.source``. Its bytes are hashed
         (SHA-256) for ``input.sha256``, which is ``None`` when there is no file (or, with
         a warning, when it cannot be read).
+    sha256 : str, optional
+        The SHA-256 of that file when the caller has it already (a batch hashes each
+        input before the run to skip up-to-date reports): the file is not hashed again.
 
     Returns
     -------
@@ -114,8 +120,8 @@ def build_report(
     """
     path = data.source if input_path is None else input_path
     warnings: list[str] = []
-    sha = None
-    if path is not None:
+    sha = sha256
+    if sha is None and path is not None:
         try:
             sha = file_sha256(path)
         except OSError as exc:
