@@ -42,6 +42,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -489,7 +490,10 @@ def history_of_files(
 
     loaded = [load_report(f) for f in files]
     if baseline_path:
-        baseline, label = load_report(baseline_path), baseline_path
+        where = Path(baseline_path).resolve()
+        among = [r for r, f in zip(loaded, files) if Path(f).resolve() == where]
+        baseline = among[0] if among else load_report(baseline_path)  # read each file once
+        label = baseline_path
     else:
         times = []
         for report, path in zip(loaded, files):
