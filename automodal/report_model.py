@@ -57,6 +57,7 @@ __all__ = [
     "ReportSettings",
     "ReportSummary",
     "Trashbox",
+    "check_header",
     "unit_max",
 ]
 
@@ -185,6 +186,38 @@ def _put(out: dict[str, Any], key: str, value: Any) -> None:
         out[key] = value
 
 
+def check_header(report: Any) -> int:
+    """The version of a parsed report, after checking that it is an automodal report this
+    version reads.
+
+    Parameters
+    ----------
+    report : any
+        Parsed JSON content.
+
+    Returns
+    -------
+    int
+        Its ``version``.
+
+    Raises
+    ------
+    InputError
+        If it is not a dict with ``format`` :data:`FORMAT_NAME`, or its ``version`` is not
+        an integer or is newer than :data:`FORMAT_VERSION`.
+    """
+    if not isinstance(report, dict) or report.get("format") != FORMAT_NAME:
+        raise InputError(f"not an automodal report (format is not {FORMAT_NAME!r})")
+    version = report.get("version")
+    if isinstance(version, bool) or not isinstance(version, int):
+        raise InputError(f"report version {version!r} is not an integer")
+    if version > FORMAT_VERSION:
+        raise InputError(
+            f"report version {version} is newer than this automodal reads ({FORMAT_VERSION})"
+        )
+    return version
+
+
 # ------------------------------------------------------------------------------ sections
 
 
@@ -199,16 +232,9 @@ class ReportHeader:
 
     @classmethod
     def from_dict(cls, report: Mapping[str, Any]) -> ReportHeader:
-        """The header of a parsed report; refuses another format or a newer version."""
-        if report.get("format") != FORMAT_NAME:
-            raise InputError(f"not an automodal report (format is not {FORMAT_NAME!r})")
-        version = report.get("version")
-        if isinstance(version, bool) or not isinstance(version, int):
-            raise InputError(f"report version {version!r} is not an integer")
-        if version > FORMAT_VERSION:
-            raise InputError(
-                f"report version {version} is newer than this automodal reads ({FORMAT_VERSION})"
-            )
+        """The header of a parsed report; refuses another format or a newer version
+        (:func:`check_header`)."""
+        version = check_header(report)
         fields = _Fields(report, "")
         return cls(
             automodal_version=fields.req("automodal_version", _str),
@@ -744,8 +770,6 @@ class Report:
             missing or of the wrong type (the message names the field, e.g.
             ``modes[2].frequency_hz``).
         """
-        if not isinstance(report, dict):
-            raise InputError(f"not an automodal report (format is not {FORMAT_NAME!r})")
         header = ReportHeader.from_dict(report)
         f = _Fields(report, "")
         f.taken.update(("format", "version", "automodal_version", "created"))

@@ -37,6 +37,7 @@ from automodal.report_model import (
     Report,
     ReportArrays,
     ReportMode,
+    check_header,
     frequency_key,
     utc_now,
 )
@@ -535,16 +536,12 @@ def _read_hdf5(path: Path) -> Any:
 
 
 def _check_header(report: Any) -> None:
-    """Refuse what is not an automodal report this version can read."""
-    if not isinstance(report, dict) or report.get("format") != FORMAT_NAME:
-        raise _Refused(f"not an automodal report (format is not {FORMAT_NAME!r})")
-    version = report.get("version")
-    if isinstance(version, bool) or not isinstance(version, int):
-        raise _Refused(f"report version {version!r} is not an integer")
-    if version > FORMAT_VERSION:
-        raise _Refused(
-            f"report version {version} is newer than this automodal reads ({FORMAT_VERSION})"
-        )
+    """Refuse what is not an automodal report this version can read
+    (:func:`~automodal.report_model.check_header`), or has no list of modes."""
+    try:
+        check_header(report)
+    except InputError as exc:
+        raise _Refused(exc.problem) from None
     if not isinstance(report.get("modes"), list):
         raise _Refused("the report has no list of modes")
 
