@@ -57,6 +57,7 @@ __all__ = [
     "ReportSettings",
     "ReportSummary",
     "Trashbox",
+    "as_floats",
     "check_header",
     "unit_max",
 ]
@@ -465,7 +466,7 @@ class ReportMode:
     @property
     def shape(self) -> np.ndarray:
         """The mode shape as a complex vector (NaN where an entry is ``null``)."""
-        return _floats(self.shape_real) + 1j * _floats(self.shape_imag)
+        return as_floats(self.shape_real) + 1j * as_floats(self.shape_imag)
 
     @property
     def has_frequency(self) -> bool:
@@ -899,12 +900,12 @@ class Report:
             cluster = np.array([m.cluster for m in modes], dtype=int)
         return ModeTable(
             ids=np.array([m.id for m in modes], dtype=int),
-            frequency_hz=_floats([m.frequency_hz for m in modes]),
-            frequency_std_hz=_floats([m.frequency_std_hz for m in modes]),
-            frequency_ci95_hz=_floats([m.frequency_ci95_hz for m in modes]).reshape(n, 2),
-            damping_ratio=_floats([m.damping_ratio for m in modes]),
-            damping_std=_floats([m.damping_std for m in modes]),
-            damping_ci95=_floats([m.damping_ci95 for m in modes]).reshape(n, 2),
+            frequency_hz=as_floats([m.frequency_hz for m in modes]),
+            frequency_std_hz=as_floats([m.frequency_std_hz for m in modes]),
+            frequency_ci95_hz=as_floats([m.frequency_ci95_hz for m in modes]).reshape(n, 2),
+            damping_ratio=as_floats([m.damping_ratio for m in modes]),
+            damping_std=as_floats([m.damping_std for m in modes]),
+            damping_ci95=as_floats([m.damping_ci95 for m in modes]).reshape(n, 2),
             physical=np.array([m.physical for m in modes], dtype=bool),
             shapes=(np.vstack(shapes).astype(complex) if n and width
                     else np.full((n, 0), np.nan, complex)),
@@ -915,8 +916,8 @@ class Report:
 # ------------------------------------------------------------------------------ helpers
 
 
-def _floats(values: Sequence[Any]) -> np.ndarray:
-    """A float array from JSON numbers (nested lists too), ``None`` as NaN."""
+def as_floats(values: Sequence[Any]) -> np.ndarray:
+    """A float array from the report's JSON numbers (nested lists too), ``None`` as NaN."""
     def fix(v: Any) -> Any:
         if isinstance(v, (list, tuple)):
             return [fix(x) for x in v]

@@ -37,6 +37,7 @@ from automodal.report_model import (
     Report,
     ReportArrays,
     ReportMode,
+    as_floats,
     check_header,
     frequency_key,
     utc_now,
@@ -340,38 +341,33 @@ def _write_attributes(group: h5py.Group, fields: dict[str, Any]) -> None:
         elif isinstance(value, list) and all(isinstance(v, str) for v in value):
             group.attrs[key] = np.array(value, dtype=h5py.string_dtype())
         elif isinstance(value, list):
-            group.attrs[key] = _floats(value)
+            group.attrs[key] = as_floats(value)
         else:
             group.attrs[key] = value
-
-
-def _floats(values: list[Any]) -> np.ndarray:
-    """A float array from JSON numbers, ``None`` as NaN."""
-    return np.array([np.nan if v is None else v for v in values], dtype=float)
 
 
 def _write_modes(group: h5py.Group, modes: list[ReportMode], n_outputs: int) -> None:
     """One dataset per mode field, one row per mode (``mode_shape`` complex)."""
     n = len(modes)
     for key in _MODE_FLOATS:
-        group.create_dataset(key, data=_floats([getattr(m, key) for m in modes]))
+        group.create_dataset(key, data=as_floats([getattr(m, key) for m in modes]))
     for key in _MODE_INTS:
         if all(getattr(m, key) is not None for m in modes):
             group.create_dataset(key, data=np.array([getattr(m, key) for m in modes],
                                                     dtype=np.int64))
     for key in _MODE_PAIRS:
-        pairs = _floats([x for m in modes for x in getattr(m, key)])
+        pairs = as_floats([x for m in modes for x in getattr(m, key)])
         group.create_dataset(key, data=pairs.reshape(n, 2))
     group.create_dataset("physical", data=np.array([m.physical for m in modes], dtype=bool))
-    real = _floats([x for m in modes for x in m.shape_real])
-    imag = _floats([x for m in modes for x in m.shape_imag])
+    real = as_floats([x for m in modes for x in m.shape_real])
+    imag = as_floats([x for m in modes for x in m.shape_imag])
     group.create_dataset("mode_shape", data=(real + 1j * imag).reshape(n, n_outputs))
-    spread = _floats([x for m in modes for x in m.mode_shape_std])
+    spread = as_floats([x for m in modes for x in m.mode_shape_std])
     group.create_dataset("mode_shape_std", data=spread.reshape(n, n_outputs))
     names = sorted({k for m in modes for k in m.features or {}})
     for name in names:
         values = [(m.features or {}).get(name) for m in modes]
-        group.create_dataset(f"features/{name}", data=_floats(values))
+        group.create_dataset(f"features/{name}", data=as_floats(values))
 
 
 def _write_poles(group: h5py.Group, poles: PoleTable) -> None:
