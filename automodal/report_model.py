@@ -1,7 +1,7 @@
 """The identification report (``docs/report.md``, version 1) as typed dataclasses.
 
 :class:`Report` is the one interface to a report: :meth:`Report.from_result` builds it from
-a :class:`~automodal.pipeline.Result` and its input (the only place where report content is
+a :class:`~automodal.result.Result` and its input (the only place where report content is
 made), :meth:`Report.to_dict` gives the JSON content (the contract of ``docs/report.md``,
 keys in the order they are written), and :meth:`Report.from_dict` checks a parsed report
 (JSON, or the ``report_json`` of an HDF5 report, see :func:`automodal.io.report.read_report`)
@@ -351,7 +351,7 @@ class ReportInput:
 class ReportSettings:
     """The ``settings`` section: every parameter that influenced the result.
 
-    The keys are those of :meth:`automodal.pipeline.Settings.to_dict` plus ``orders`` (the
+    The keys are those of :meth:`automodal.settings.Settings.to_dict` plus ``orders`` (the
     order scan); they are kept as a dict (``values``) since they follow the pipeline.
     """
 
@@ -705,8 +705,18 @@ class Report:
         -------
         Report
             With ``arrays`` holding the run's poles and FRF fit. Every NaN or infinity
-            of the run is ``None`` with a warning naming its field. The additions to the
-            spec are those of :func:`automodal.io.report.report_dict`.
+            of the run is ``None`` with a warning naming its field. The keys of
+            ``docs/report.md`` plus these additions: ``input.frequency_range_hz`` (span
+            of the whole input, while ``input.band_hz`` is the analysed band),
+            ``input.output_xyz``, ``input.output_directions``, ``input.n_lines_analysed``,
+            ``input.reciprocity``, ``input.mode_shape_channels``, ``settings.orders``
+            (the order scan and the reference order), per mode ``cluster``,
+            ``cluster_dim`` and ``features`` (the physicalness features),
+            ``summary.n_reference_clusters`` and, when the run used a noise model,
+            ``noise``. ``summary.n_clusters`` counts the listed modes (every surviving
+            cluster, a near-repeated cluster once per member rank), so that
+            ``n_physical`` of ``n_clusters`` compares like with like. Modes are sorted
+            by frequency.
         """
         all_warnings = [str(w) for w in result.warnings] + [str(w) for w in warnings]
         freq = np.asarray(data.frequency, dtype=float)

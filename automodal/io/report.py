@@ -91,14 +91,12 @@ def build_report(
     input_path: str | os.PathLike[str] | None = None,
     sha256: str | None = None,
 ) -> Report:
-    """The report of one run (see :meth:`Report.from_result`), its input file hashed.
+    """The report of one run (:meth:`Report.from_result`), its input file hashed.
 
     Parameters
     ----------
-    result : Result
-        What :func:`automodal.pipeline.identify` returned for ``data``.
-    data : FRFData
-        The test that was identified.
+    result, data
+        As for :meth:`Report.from_result`.
     input_path : str or path-like, optional
         The file ``data`` was read from; default ``data.source``. Its bytes are hashed
         (SHA-256) for ``input.sha256``, which is ``None`` when there is no file (or, with
@@ -110,15 +108,8 @@ def build_report(
     Returns
     -------
     Report
-        The keys of ``docs/report.md`` plus these additions: ``input.frequency_range_hz``
-        (span of the whole input, while ``input.band_hz`` is the analysed band),
-        ``input.output_xyz``, ``input.output_directions``, ``input.n_lines_analysed``,
-        ``input.reciprocity``, ``input.mode_shape_channels``, ``settings.orders`` (the
-        order scan and the reference order), per mode ``cluster``, ``cluster_dim`` and
-        ``features`` (the physicalness features), and ``summary.n_reference_clusters``.
-        ``summary.n_clusters`` counts the listed modes (every surviving cluster, a
-        near-repeated cluster once per member rank), so that ``n_physical`` of
-        ``n_clusters`` compares like with like. Modes are sorted by frequency.
+        Made now (``created``); its content, with the additions to ``docs/report.md``, is
+        described at :meth:`Report.from_result`.
     """
     path = data.source if input_path is None else input_path
     warnings: list[str] = []
@@ -177,9 +168,9 @@ def write_report(
     Parameters
     ----------
     path : str or path-like
-        ``*.json`` for JSON (indented by 2), ``*.h5`` or ``*.hdf5`` for HDF5 (the spec's
-        layout, with every bootstrap pole under ``/poles``; the whole JSON report is kept
-        in the root attribute ``report_json``).
+        ``*.json`` for JSON (indented by 2), ``*.h5`` or ``*.hdf5`` for HDF5 (the
+        layout of ``docs/report.md``, with every bootstrap pole under ``/poles``; the
+        whole JSON report is kept in the root attribute ``report_json``).
     result, data, input_path
         As for :func:`build_report`.
     frf : (frequency, measured, synthesized), optional
@@ -306,7 +297,8 @@ def _frf_for_report(report: Report, frf: FRFArrays) -> dict[str, np.ndarray]:
 def _write_hdf5(
     path: Path, report: Report, poles: PoleTable | None, frf: dict[str, np.ndarray] | None = None
 ) -> None:
-    """The report in the spec's HDF5 layout, plus its JSON text in ``report_json``."""
+    """The report in the HDF5 layout of ``docs/report.md``, plus its JSON text in
+    ``report_json``."""
     content = report.to_dict()
     text = json.dumps(content, ensure_ascii=False, allow_nan=False)
     strings = h5py.string_dtype()
