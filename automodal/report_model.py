@@ -76,6 +76,9 @@ FRFArrays = tuple[np.ndarray, np.ndarray, "np.ndarray | None"]
 ``frequency`` has shape ``(n,)`` in Hz, ``measured`` and ``synthesized`` (which may be
 ``None``) shape ``(n, n_outputs, n_inputs)``."""
 
+_UTC_FORMAT = "%Y-%m-%dT%H:%M:%SZ"
+"""The report's times: UTC ISO 8601 with seconds and ``Z``."""
+
 Number = float | int | None
 """A JSON number of the report; ``None`` where the value was not finite."""
 
@@ -986,7 +989,7 @@ def frequency_key(mode: IdentifiedMode) -> tuple[bool, float]:
 
 def utc_now() -> str:
     """The current UTC time as ISO 8601 with seconds and ``Z``."""
-    return _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
+    return _dt.datetime.now(_dt.timezone.utc).strftime(_UTC_FORMAT)
 
 
 def parse_time(value: Any) -> str | None:
@@ -1002,4 +1005,4 @@ def parse_time(value: Any) -> str | None:
         return None
     if t.tzinfo is None:
         t = t.replace(tzinfo=_dt.timezone.utc)
-    return t.astimezone(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
+    return t.astimezone(_dt.timezone.utc).strftime(_UTC_FORMAT)
