@@ -122,7 +122,8 @@ def build_report(
             warnings.append(
                 f"input file {os.fspath(path)} could not be hashed ({reason}): sha256 is null"
             )
-    return Report.from_result(result, data, path, sha256=sha, created=_utc_now(),
+    # ``created`` from this module's ``utc_now``, the clock the tests fix
+    return Report.from_result(result, data, path, sha256=sha, created=utc_now(),
                               warnings=warnings)
 
 
@@ -146,11 +147,6 @@ def file_sha256(path: str | os.PathLike[str]) -> str:
         for chunk in iter(lambda: fh.read(_HASH_CHUNK), b""):
             digest.update(chunk)
     return digest.hexdigest()
-
-
-def _utc_now() -> str:
-    """The current UTC time as ISO 8601 with seconds and ``Z`` (the report's ``created``)."""
-    return utc_now()
 
 
 # ------------------------------------------------------------------------------ writing
