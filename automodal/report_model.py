@@ -1,7 +1,7 @@
 """The identification report (``docs/report.md``, version 1) as typed dataclasses.
 
 :class:`Report` is the one interface to a report: :meth:`Report.from_result` builds it from
-a :class:`~automodal.pipeline.Result` and its input (the only place where report content is
+a :class:`~automodal.result.Result` and its input (the only place where report content is
 made), :meth:`Report.to_dict` gives the JSON content (the contract of ``docs/report.md``,
 keys in the order they are written), and :meth:`Report.from_dict` checks a parsed report
 (JSON, or the ``report_json`` of an HDF5 report, see :func:`automodal.io.report.read_report`)
@@ -57,6 +57,8 @@ __all__ = [
     "ReportSettings",
     "ReportSummary",
     "Trashbox",
+    "as_floats",
+    "check_header",
     "unit_max",
 ]
 
@@ -73,6 +75,9 @@ FRFArrays = tuple[np.ndarray, np.ndarray, "np.ndarray | None"]
 """``(frequency, measured, synthesized)``: FRFs of the analysed band for the report's plots.
 ``frequency`` has shape ``(n,)`` in Hz, ``measured`` and ``synthesized`` (which may be
 ``None``) shape ``(n, n_outputs, n_inputs)``."""
+
+_UTC_FORMAT = "%Y-%m-%dT%H:%M:%SZ"
+"""The report's times: UTC ISO 8601 with seconds and ``Z``."""
 
 Number = float | int | None
 """A JSON number of the report; ``None`` where the value was not finite."""
@@ -185,6 +190,38 @@ def _put(out: dict[str, Any], key: str, value: Any) -> None:
         out[key] = value
 
 
+def check_header(report: Any) -> int:
+    """The version of a parsed report, after checking that it is an automodal report this
+    version reads.
+
+    Parameters
+    ----------
+    report : any
+        Parsed JSON content.
+
+    Returns
+    -------
+    int
+        Its ``version``.
+
+    Raises
+    ------
+    InputError
+        If it is not a dict with ``format`` :data:`FORMAT_NAME`, or its ``version`` is not
+        an integer or is newer than :data:`FORMAT_VERSION`.
+    """
+    if not isinstance(report, dict) or report.get("format") != FORMAT_NAME:
+        raise InputError(f"not an automodal report (format is not {FORMAT_NAME!r})")
+    version = report.get("version")
+    if isinstance(version, bool) or not isinstance(version, int):
+        raise InputError(f"report version {version!r} is not an integer")
+    if version > FORMAT_VERSION:
+        raise InputError(
+            f"report version {version} is newer than this automodal reads ({FORMAT_VERSION})"
+        )
+    return version
+
+
 # ------------------------------------------------------------------------------ sections
 
 
@@ -199,16 +236,9 @@ class ReportHeader:
 
     @classmethod
     def from_dict(cls, report: Mapping[str, Any]) -> ReportHeader:
-        """The header of a parsed report; refuses another format or a newer version."""
-        if report.get("format") != FORMAT_NAME:
-            raise InputError(f"not an automodal report (format is not {FORMAT_NAME!r})")
-        version = report.get("version")
-        if isinstance(version, bool) or not isinstance(version, int):
-            raise InputError(f"report version {version!r} is not an integer")
-        if version > FORMAT_VERSION:
-            raise InputError(
-                f"report version {version} is newer than this automodal reads ({FORMAT_VERSION})"
-            )
+        """The header of a parsed report; refuses another format or a newer version
+        (:func:`check_header`)."""
+        version = check_header(report)
         fields = _Fields(report, "")
         return cls(
             automodal_version=fields.req("automodal_version", _str),
@@ -324,7 +354,7 @@ class ReportInput:
 class ReportSettings:
     """The ``settings`` section: every parameter that influenced the result.
 
-    The keys are those of :meth:`automodal.pipeline.Settings.to_dict` plus ``orders`` (the
+    The keys are those of :meth:`automodal.settings.Settings.to_dict` plus ``orders`` (the
     order scan); they are kept as a dict (``values``) since they follow the pipeline.
     """
 
@@ -439,7 +469,7 @@ class ReportMode:
     @property
     def shape(self) -> np.ndarray:
         """The mode shape as a complex vector (NaN where an entry is ``null``)."""
-        return _floats(self.shape_real) + 1j * _floats(self.shape_imag)
+        return as_floats(self.shape_real) + 1j * as_floats(self.shape_imag)
 
     @property
     def has_frequency(self) -> bool:
@@ -678,8 +708,18 @@ class Report:
         -------
         Report
             With ``arrays`` holding the run's poles and FRF fit. Every NaN or infinity
-            of the run is ``None`` with a warning naming its field. The additions to the
-            spec are those of :func:`automodal.io.report.report_dict`.
+            of the run is ``None`` with a warning naming its field. The keys of
+            ``docs/report.md`` plus these additions: ``input.frequency_range_hz`` (span
+            of the whole input, while ``input.band_hz`` is the analysed band),
+            ``input.output_xyz``, ``input.output_directions``, ``input.n_lines_analysed``,
+            ``input.reciprocity``, ``input.mode_shape_channels``, ``settings.orders``
+            (the order scan and the reference order), per mode ``cluster``,
+            ``cluster_dim`` and ``features`` (the physicalness features),
+            ``summary.n_reference_clusters`` and, when the run used a noise model,
+            ``noise``. ``summary.n_clusters`` counts the listed modes (every surviving
+            cluster, a near-repeated cluster once per member rank), so that
+            ``n_physical`` of ``n_clusters`` compares like with like. Modes are sorted
+            by frequency.
         """
         all_warnings = [str(w) for w in result.warnings] + [str(w) for w in warnings]
         freq = np.asarray(data.frequency, dtype=float)
@@ -744,8 +784,6 @@ class Report:
             missing or of the wrong type (the message names the field, e.g.
             ``modes[2].frequency_hz``).
         """
-        if not isinstance(report, dict):
-            raise InputError(f"not an automodal report (format is not {FORMAT_NAME!r})")
         header = ReportHeader.from_dict(report)
         f = _Fields(report, "")
         f.taken.update(("format", "version", "automodal_version", "created"))
@@ -875,12 +913,12 @@ class Report:
             cluster = np.array([m.cluster for m in modes], dtype=int)
         return ModeTable(
             ids=np.array([m.id for m in modes], dtype=int),
-            frequency_hz=_floats([m.frequency_hz for m in modes]),
-            frequency_std_hz=_floats([m.frequency_std_hz for m in modes]),
-            frequency_ci95_hz=_floats([m.frequency_ci95_hz for m in modes]).reshape(n, 2),
-            damping_ratio=_floats([m.damping_ratio for m in modes]),
-            damping_std=_floats([m.damping_std for m in modes]),
-            damping_ci95=_floats([m.damping_ci95 for m in modes]).reshape(n, 2),
+            frequency_hz=as_floats([m.frequency_hz for m in modes]),
+            frequency_std_hz=as_floats([m.frequency_std_hz for m in modes]),
+            frequency_ci95_hz=as_floats([m.frequency_ci95_hz for m in modes]).reshape(n, 2),
+            damping_ratio=as_floats([m.damping_ratio for m in modes]),
+            damping_std=as_floats([m.damping_std for m in modes]),
+            damping_ci95=as_floats([m.damping_ci95 for m in modes]).reshape(n, 2),
             physical=np.array([m.physical for m in modes], dtype=bool),
             shapes=(np.vstack(shapes).astype(complex) if n and width
                     else np.full((n, 0), np.nan, complex)),
@@ -891,8 +929,8 @@ class Report:
 # ------------------------------------------------------------------------------ helpers
 
 
-def _floats(values: Sequence[Any]) -> np.ndarray:
-    """A float array from JSON numbers (nested lists too), ``None`` as NaN."""
+def as_floats(values: Sequence[Any]) -> np.ndarray:
+    """A float array from the report's JSON numbers (nested lists too), ``None`` as NaN."""
     def fix(v: Any) -> Any:
         if isinstance(v, (list, tuple)):
             return [fix(x) for x in v]
@@ -951,7 +989,7 @@ def frequency_key(mode: IdentifiedMode) -> tuple[bool, float]:
 
 def utc_now() -> str:
     """The current UTC time as ISO 8601 with seconds and ``Z``."""
-    return _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
+    return _dt.datetime.now(_dt.timezone.utc).strftime(_UTC_FORMAT)
 
 
 def parse_time(value: Any) -> str | None:
@@ -967,4 +1005,4 @@ def parse_time(value: Any) -> str | None:
         return None
     if t.tzinfo is None:
         t = t.replace(tzinfo=_dt.timezone.utc)
-    return t.astimezone(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
+    return t.astimezone(_dt.timezone.utc).strftime(_UTC_FORMAT)

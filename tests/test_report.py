@@ -55,7 +55,7 @@ def data(identified) -> FRFData:
 @pytest.fixture
 def fixed_clock(monkeypatch) -> None:
     """Make ``created`` the same in every report of a test."""
-    monkeypatch.setattr(report_module, "_utc_now", lambda: FIXED_TIME)
+    monkeypatch.setattr(report_module, "utc_now", lambda: FIXED_TIME)
 
 
 def with_modes(result: Result, modes: list) -> Result:

@@ -55,7 +55,7 @@ def identified(tmp_path_factory) -> tuple[Result, FRFData, Path]:
 
 @pytest.fixture
 def fixed_clock(monkeypatch) -> None:
-    monkeypatch.setattr(report_module, "_utc_now", lambda: FIXED_TIME)
+    monkeypatch.setattr(report_module, "utc_now", lambda: FIXED_TIME)
 
 
 @pytest.fixture

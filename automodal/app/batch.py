@@ -263,7 +263,8 @@ def process_file(
             old = _up_to_date(targets, sha, settings, baseline, baseline_path, thresholds)
             if old is not None:
                 return _outcome(path, "skipped", old, targets, time.perf_counter() - t0)
-        run = run_file(path, settings, targets, baseline, baseline_path, thresholds)
+        run = run_file(path, settings, targets, baseline, baseline_path, thresholds,
+                       sha256=sha)
         return _outcome(path, "flagged" if run.flagged else "ok", run.report, targets,
                         time.perf_counter() - t0)
     except InputError as exc:

@@ -42,6 +42,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -218,6 +219,12 @@ def compare_reports(
     ValueError
         If the reports' mode shapes are on different channels (names or count).
     """
+    _check_channels(baseline, current)
+    return compare(baseline.mode_table(), current.mode_table(), thresholds)
+
+
+def _check_channels(baseline: Report, current: Report) -> None:
+    """Refuse (``ValueError``) two reports whose mode shapes are on different channels."""
     names_b = baseline.shape_channels
     names_c = current.shape_channels
     if names_b and names_c and names_b != names_c:
@@ -226,7 +233,6 @@ def compare_reports(
             f"({', '.join(names_c[:4])}{'...' if len(names_c) > 4 else ''} against "
             f"{', '.join(names_b[:4])}{'...' if len(names_b) > 4 else ''})"
         )
-    return compare(baseline.mode_table(), current.mode_table(), thresholds)
 
 
 def baseline_identity(baseline: Report, path: str) -> dict[str, Any]:
@@ -408,7 +414,8 @@ def build_history(
             raise ValueError(f"{label}: {exc}") from None
         stamped.append((when, str(label), source, report))
     stamped.sort(key=lambda s: (s[0], s[1]))
-    base = baseline.mode_table().physical_by_frequency()
+    base_all = baseline.mode_table()
+    base = base_all.physical_by_frequency()
     column = {int(k): m for m, k in enumerate(base.ids)}
     T, M = len(stamped), base.n_modes
     h = History(
@@ -433,11 +440,12 @@ def build_history(
         thresholds=th,
     )
     for t, (_, label, _, report) in enumerate(stamped):
-        try:
-            result = compare_reports(baseline, report, th)
+        cur = report.mode_table()
+        try:  # compare_reports, with each report's table made once
+            _check_channels(baseline, report)
+            result = compare(base_all, cur, th)
         except ValueError as exc:
             raise ValueError(f"{label}: {exc}") from None
-        cur = report.mode_table()
         row = {int(k): r for r, k in enumerate(cur.ids)}
         h.flagged[t] = result.flagged
         for e in result.entries:
@@ -489,7 +497,10 @@ def history_of_files(
 
     loaded = [load_report(f) for f in files]
     if baseline_path:
-        baseline, label = load_report(baseline_path), baseline_path
+        where = Path(baseline_path).resolve()
+        among = [r for r, f in zip(loaded, files) if Path(f).resolve() == where]
+        baseline = among[0] if among else load_report(baseline_path)  # read each file once
+        label = baseline_path
     else:
         times = []
         for report, path in zip(loaded, files):

@@ -26,7 +26,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from automodal.report_model import Report, ReportMode
+from automodal.report_model import Report, ReportMode, as_floats
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
@@ -308,7 +308,7 @@ def mode_shapes(
         n_xyz = len(inp.output_xyz)
         rows = (report.shape_output_indices() if n_xyz == len(inp.output_names)
                 else list(range(n_xyz)))  # outputs the run kept
-        xyz = _floats(inp.output_xyz)[rows]
+        xyz = as_floats(inp.output_xyz)[rows]
         directions = None if directions is None else [directions[i] for i in rows
                                                       if i < len(directions)]
     geometry = xyz is not None
@@ -739,11 +739,6 @@ def _cluster_colors(by_cluster: Mapping[int, _Cluster], present: np.ndarray) -> 
 def _shape(mode: ReportMode) -> np.ndarray:
     """A mode's shape as a complex array (``null`` entries as 0)."""
     return np.nan_to_num(mode.shape, nan=0.0)
-
-
-def _floats(values: Sequence[Any]) -> np.ndarray:
-    """A float array from nested JSON numbers, ``None`` as NaN."""
-    return np.array([[np.nan if v is None else v for v in row] for row in values], dtype=float)
 
 
 def _direction_vectors(directions: Sequence[str] | None, n: int) -> np.ndarray:

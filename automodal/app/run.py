@@ -2,8 +2,9 @@
 
 :func:`run_file` is the one path from an input file to its report files, used by
 ``automodal identify`` on one file (:mod:`automodal.cli.identify_cmd`) and by each file of a
-batch (:func:`automodal.app.batch.process_file`). :func:`check_jobs` gives ``jobs`` its one
-meaning: ``None`` automatic (all cores when the work pays for them), an integer >= 1 that
+batch (:func:`automodal.app.batch.process_file`). :func:`check_jobs` gives a ``jobs``
+argument the meaning :class:`~automodal.settings.Settings` gives its own (which it checks on
+creation): ``None`` automatic (all cores when the work pays for them), an integer >= 1 that
 many workers; 0 or negative is refused.
 """
 
@@ -88,8 +89,9 @@ def read_input(path: str | os.PathLike[str]) -> FRFData:
     return as_frfdata(read_any(path))
 
 
-def save(out: str | os.PathLike[str], outcome_report: Report, result: Result) -> Path:
-    """Write one report file (atomically: whole or not at all).
+def save(out: str | os.PathLike[str], report: Report, result: Result) -> Path:
+    """Write one report file (atomically: whole or not at all), with the run's poles and
+    FRF fit for an HDF5 report.
 
     A failure to write (read-only folder, full disk) becomes an :class:`InputError`
     naming the report.
@@ -97,7 +99,7 @@ def save(out: str | os.PathLike[str], outcome_report: Report, result: Result) ->
     from automodal.io.report import save_report
 
     try:
-        save_report(out, outcome_report, result.poles, frf=result.frf_fit)
+        save_report(out, report, result.poles, frf=result.frf_fit)
     except OSError as exc:
         reason = exc.strerror or " ".join(str(exc).split()) or type(exc).__name__
         raise InputError(f"cannot write the report: {reason}", os.fspath(out)) from exc
@@ -112,6 +114,7 @@ def run_file(
     baseline_path: str | None = None,
     thresholds: Thresholds | None = None,
     progress: Callable[[int], None] | None = None,
+    sha256: str | None = None,
 ) -> RunOutcome:
     """Identify one input file and write its reports.
 
@@ -120,7 +123,7 @@ def run_file(
     path : str or path-like
         The input (any format :func:`automodal.io.readers.read_any` reads).
     settings : Settings
-        Settings of the identification (``jobs`` included).
+        Settings of the identification (``jobs`` included, checked when they were made).
     outputs : sequence of path-like
         Report files to write (``.json``, ``.h5``), after the baseline check.
     baseline : Report, optional
@@ -131,6 +134,9 @@ def run_file(
         Of the baseline check.
     progress : callable, optional
         Called with the number of bootstrap replicates done since the last call.
+    sha256 : str, optional
+        The SHA-256 of the input when the caller has hashed it already (see
+        :func:`automodal.io.report.build_report`); default: hashed here.
 
     Returns
     -------
@@ -145,10 +151,9 @@ def run_file(
     from automodal.io.report import build_report
     from automodal.pipeline import identify
 
-    check_jobs(settings.jobs)
     data = read_input(path)
     result = identify(data, settings, progress=progress)
-    report = build_report(result, data, input_path=path)
+    report = build_report(result, data, input_path=path, sha256=sha256)
     check = None
     if baseline is not None:
         from automodal.app.monitoring import attach_monitoring

@@ -1,4 +1,4 @@
-"""The ``automodal`` command line: a thin click layer over :mod:`automodal.pipeline` and the I/O.
+"""The ``automodal`` command line: a thin click layer over :mod:`automodal.app` and the I/O.
 
 Each command lives in its own module and is imported only when it runs, so that
 ``automodal --help`` stays fast.

@@ -16,6 +16,9 @@ EXIT_INTERNAL = 1
 EXIT_INPUT = 2
 EXIT_MONITORING = 3
 
+REPORT_SUFFIXES = (".json", ".h5", ".hdf5")
+"""Suffixes of report files (JSON or HDF5), as :mod:`automodal.io.report` writes them."""
+
 
 @contextmanager
 def exit_on_error(debug: bool = False) -> Iterator[None]:

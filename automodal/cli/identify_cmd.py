@@ -16,6 +16,7 @@ from automodal.cli._common import (
     EXIT_INPUT,
     EXIT_MONITORING,
     EXIT_OK,
+    REPORT_SUFFIXES,
     debug_option,
     exit_on_error,
 )
@@ -26,8 +27,6 @@ if TYPE_CHECKING:
     from automodal.app.run import RunOutcome
     from automodal.report_model import Report
     from automodal.settings import Settings
-
-REPORT_SUFFIXES = (".json", ".h5", ".hdf5")
 
 
 def _check_outputs(outputs: tuple[str, ...]) -> None:

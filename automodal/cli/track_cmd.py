@@ -6,11 +6,8 @@ from pathlib import Path
 
 import click
 
-from automodal.cli._common import debug_option, exit_on_error
+from automodal.cli._common import REPORT_SUFFIXES, debug_option, exit_on_error
 from automodal.errors import InputError
-
-REPORT_SUFFIXES = (".json", ".h5", ".hdf5")
-"""Suffixes of the reports taken from a folder given as REPORTS."""
 
 SKIPPED_NAMES = ("summary.json",)
 """Files of a folder that are never reports (the batch summary)."""

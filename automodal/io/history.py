@@ -23,7 +23,6 @@ dataset                                    shape       meaning
 
 from __future__ import annotations
 
-import datetime as _dt
 import json
 import os
 from pathlib import Path
@@ -34,6 +33,7 @@ import numpy as np
 from automodal import __version__
 from automodal.errors import InputError
 from automodal.io.atomic import atomic_path
+from automodal.report_model import utc_now
 from automodal.tracking import History, Thresholds
 
 __all__ = ["FORMAT_NAME", "FORMAT_VERSION", "is_history_file", "read_history", "write_history"]
@@ -72,7 +72,7 @@ def write_history(path: str | os.PathLike[str], history: History) -> Path:
         f.attrs["format"] = FORMAT_NAME
         f.attrs["version"] = FORMAT_VERSION
         f.attrs["automodal_version"] = __version__
-        f.attrs["created"] = _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
+        f.attrs["created"] = utc_now()
         f.attrs["baseline"] = history.baseline_label
         f.attrs["thresholds"] = json.dumps(history.thresholds.to_dict())
         for name, attr in _STRINGS.items():

@@ -37,6 +37,8 @@ from automodal.report_model import (
     Report,
     ReportArrays,
     ReportMode,
+    as_floats,
+    check_header,
     frequency_key,
     utc_now,
 )
@@ -84,38 +86,35 @@ class _Refused(Exception):
 
 
 def build_report(
-    result: Result, data: FRFData, input_path: str | os.PathLike[str] | None = None
+    result: Result,
+    data: FRFData,
+    input_path: str | os.PathLike[str] | None = None,
+    sha256: str | None = None,
 ) -> Report:
-    """The report of one run (see :meth:`Report.from_result`), its input file hashed.
+    """The report of one run (:meth:`Report.from_result`), its input file hashed.
 
     Parameters
     ----------
-    result : Result
-        What :func:`automodal.pipeline.identify` returned for ``data``.
-    data : FRFData
-        The test that was identified.
+    result, data
+        As for :meth:`Report.from_result`.
     input_path : str or path-like, optional
         The file ``data`` was read from; default ``data.source``. Its bytes are hashed
         (SHA-256) for ``input.sha256``, which is ``None`` when there is no file (or, with
         a warning, when it cannot be read).
+    sha256 : str, optional
+        The SHA-256 of that file when the caller has it already (a batch hashes each
+        input before the run to skip up-to-date reports): the file is not hashed again.
 
     Returns
     -------
     Report
-        The keys of ``docs/report.md`` plus these additions: ``input.frequency_range_hz``
-        (span of the whole input, while ``input.band_hz`` is the analysed band),
-        ``input.output_xyz``, ``input.output_directions``, ``input.n_lines_analysed``,
-        ``input.reciprocity``, ``input.mode_shape_channels``, ``settings.orders`` (the
-        order scan and the reference order), per mode ``cluster``, ``cluster_dim`` and
-        ``features`` (the physicalness features), and ``summary.n_reference_clusters``.
-        ``summary.n_clusters`` counts the listed modes (every surviving cluster, a
-        near-repeated cluster once per member rank), so that ``n_physical`` of
-        ``n_clusters`` compares like with like. Modes are sorted by frequency.
+        Made now (``created``); its content, with the additions to ``docs/report.md``, is
+        described at :meth:`Report.from_result`.
     """
     path = data.source if input_path is None else input_path
     warnings: list[str] = []
-    sha = None
-    if path is not None:
+    sha = sha256
+    if sha is None and path is not None:
         try:
             sha = file_sha256(path)
         except OSError as exc:
@@ -123,7 +122,8 @@ def build_report(
             warnings.append(
                 f"input file {os.fspath(path)} could not be hashed ({reason}): sha256 is null"
             )
-    return Report.from_result(result, data, path, sha256=sha, created=_utc_now(),
+    # ``created`` from this module's ``utc_now``, the clock the tests fix
+    return Report.from_result(result, data, path, sha256=sha, created=utc_now(),
                               warnings=warnings)
 
 
@@ -149,11 +149,6 @@ def file_sha256(path: str | os.PathLike[str]) -> str:
     return digest.hexdigest()
 
 
-def _utc_now() -> str:
-    """The current UTC time as ISO 8601 with seconds and ``Z`` (the report's ``created``)."""
-    return utc_now()
-
-
 # ------------------------------------------------------------------------------ writing
 
 
@@ -169,9 +164,9 @@ def write_report(
     Parameters
     ----------
     path : str or path-like
-        ``*.json`` for JSON (indented by 2), ``*.h5`` or ``*.hdf5`` for HDF5 (the spec's
-        layout, with every bootstrap pole under ``/poles``; the whole JSON report is kept
-        in the root attribute ``report_json``).
+        ``*.json`` for JSON (indented by 2), ``*.h5`` or ``*.hdf5`` for HDF5 (the
+        layout of ``docs/report.md``, with every bootstrap pole under ``/poles``; the
+        whole JSON report is kept in the root attribute ``report_json``).
     result, data, input_path
         As for :func:`build_report`.
     frf : (frequency, measured, synthesized), optional
@@ -298,7 +293,8 @@ def _frf_for_report(report: Report, frf: FRFArrays) -> dict[str, np.ndarray]:
 def _write_hdf5(
     path: Path, report: Report, poles: PoleTable | None, frf: dict[str, np.ndarray] | None = None
 ) -> None:
-    """The report in the spec's HDF5 layout, plus its JSON text in ``report_json``."""
+    """The report in the HDF5 layout of ``docs/report.md``, plus its JSON text in
+    ``report_json``."""
     content = report.to_dict()
     text = json.dumps(content, ensure_ascii=False, allow_nan=False)
     strings = h5py.string_dtype()
@@ -333,38 +329,33 @@ def _write_attributes(group: h5py.Group, fields: dict[str, Any]) -> None:
         elif isinstance(value, list) and all(isinstance(v, str) for v in value):
             group.attrs[key] = np.array(value, dtype=h5py.string_dtype())
         elif isinstance(value, list):
-            group.attrs[key] = _floats(value)
+            group.attrs[key] = as_floats(value)
         else:
             group.attrs[key] = value
-
-
-def _floats(values: list[Any]) -> np.ndarray:
-    """A float array from JSON numbers, ``None`` as NaN."""
-    return np.array([np.nan if v is None else v for v in values], dtype=float)
 
 
 def _write_modes(group: h5py.Group, modes: list[ReportMode], n_outputs: int) -> None:
     """One dataset per mode field, one row per mode (``mode_shape`` complex)."""
     n = len(modes)
     for key in _MODE_FLOATS:
-        group.create_dataset(key, data=_floats([getattr(m, key) for m in modes]))
+        group.create_dataset(key, data=as_floats([getattr(m, key) for m in modes]))
     for key in _MODE_INTS:
         if all(getattr(m, key) is not None for m in modes):
             group.create_dataset(key, data=np.array([getattr(m, key) for m in modes],
                                                     dtype=np.int64))
     for key in _MODE_PAIRS:
-        pairs = _floats([x for m in modes for x in getattr(m, key)])
+        pairs = as_floats([x for m in modes for x in getattr(m, key)])
         group.create_dataset(key, data=pairs.reshape(n, 2))
     group.create_dataset("physical", data=np.array([m.physical for m in modes], dtype=bool))
-    real = _floats([x for m in modes for x in m.shape_real])
-    imag = _floats([x for m in modes for x in m.shape_imag])
+    real = as_floats([x for m in modes for x in m.shape_real])
+    imag = as_floats([x for m in modes for x in m.shape_imag])
     group.create_dataset("mode_shape", data=(real + 1j * imag).reshape(n, n_outputs))
-    spread = _floats([x for m in modes for x in m.mode_shape_std])
+    spread = as_floats([x for m in modes for x in m.mode_shape_std])
     group.create_dataset("mode_shape_std", data=spread.reshape(n, n_outputs))
     names = sorted({k for m in modes for k in m.features or {}})
     for name in names:
         values = [(m.features or {}).get(name) for m in modes]
-        group.create_dataset(f"features/{name}", data=_floats(values))
+        group.create_dataset(f"features/{name}", data=as_floats(values))
 
 
 def _write_poles(group: h5py.Group, poles: PoleTable) -> None:
@@ -529,16 +520,12 @@ def _read_hdf5(path: Path) -> Any:
 
 
 def _check_header(report: Any) -> None:
-    """Refuse what is not an automodal report this version can read."""
-    if not isinstance(report, dict) or report.get("format") != FORMAT_NAME:
-        raise _Refused(f"not an automodal report (format is not {FORMAT_NAME!r})")
-    version = report.get("version")
-    if isinstance(version, bool) or not isinstance(version, int):
-        raise _Refused(f"report version {version!r} is not an integer")
-    if version > FORMAT_VERSION:
-        raise _Refused(
-            f"report version {version} is newer than this automodal reads ({FORMAT_VERSION})"
-        )
+    """Refuse what is not an automodal report this version can read
+    (:func:`~automodal.report_model.check_header`), or has no list of modes."""
+    try:
+        check_header(report)
+    except InputError as exc:
+        raise _Refused(exc.problem) from None
     if not isinstance(report.get("modes"), list):
         raise _Refused("the report has no list of modes")
 
