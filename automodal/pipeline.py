@@ -104,7 +104,16 @@ class Prepared:
     Hs: np.ndarray  # scaled FRF
     line_weights: np.ndarray
     noise: NoiseEstimate | None = None  # the noise model of the analysed FRF (un-oriented)
-    variance: np.ndarray | None = None  # its variance, oriented and channel-scaled like Hs
+    variance: np.ndarray | None = None  # its variance, oriented and channel-scaled like Hs,
+    # when the identification is weighted by it (weighting "noise")
+
+    @property
+    def noise_variance(self) -> np.ndarray | None:
+        """The noise variance oriented like ``H`` (data units), or ``None``."""
+        if self.noise is None:
+            return None
+        v = self.noise.variance
+        return v.transpose(0, 2, 1) if self.reciprocal else v
 
     @property
     def window_decay(self) -> float:
@@ -122,16 +131,16 @@ def prepare(data: FRFData, s: Settings, warnings: list[str]) -> Prepared:
     freq, H, band = select_band(data, s.band_hz, warnings)
     data, freq, H = checks.prepare(data, freq, H, warnings)
     noise = None
-    if s.weighting == "noise":
-        try:
-            noise = _estimate_noise(data, freq, H)
-        except ValueError as exc:  # too few lines for the local polynomial
-            warnings.append(f"no noise model ({exc}): envelope line weights and RMS scales")
+    try:
+        noise = _estimate_noise(data, freq, H)
+    except ValueError as exc:  # too few lines for the local polynomial
+        warnings.append(f"no noise model ({exc}): envelope line weights and RMS scales,"
+                        " bootstrap intervals")
     H, reciprocal = apply_reciprocity(H, warnings)
     omega = 2.0 * np.pi * freq
     T = default_scale(omega[0], omega[-1])
     variance = None
-    if noise is None:
+    if noise is None or s.weighting != "noise":
         scales = subspace.channel_scales(H)
         Hs = H / scales[None, :, None]
         weights = subspace.envelope_weights(Hs)
@@ -219,6 +228,10 @@ def _identify(data: FRFData, s: Settings, progress: Callable[[int], None] | None
         clusters.subspaces, ref.modes, p.scales, ref.contribution, s.n_bootstrap,
         s.min_physicalness, snr2, whitening.mode_parameters(*p.Hs.shape[1:]),
     )
+    if p.noise is not None:
+        modes = summary.refine_physical_modes(
+            modes, ref.modal.poles, ref.modal.oscillatory, p.omega, p.H, p.noise_variance,
+            p.window_decay)
     keep = summary.physical_reference_modes(modes, clusters.subspaces)
     H_syn = ref.modal.synthesize(p.z, keep) * p.scales[None, :, None]
     return Result(

@@ -33,6 +33,13 @@ class IdentifiedMode:
     cluster: int
     cluster_dim: int
     features: dict[str, float]
+    reference_mode: int = -1
+    """Index of the reference model's mode (in :meth:`ModalModel.modes` order) this mode
+    is represented by (internal: not in the report)."""
+    estimator: str = "bootstrap"
+    """Where the frequency, damping and their intervals come from: ``"bootstrap"`` (the
+    replicates' median and percentiles) or ``"ml"`` (the noise-weighted maximum-likelihood
+    refinement of the pole and its Cramér-Rao interval, :mod:`automodal.core.refine`)."""
 
 
 @dataclass
