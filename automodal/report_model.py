@@ -414,6 +414,7 @@ class ReportMode:
     cluster: int | None = None
     cluster_dim: int | None = None
     features: dict[str, Number] | None = None
+    estimator: str | None = None
     extra: dict[str, Any] = field(default_factory=dict)
 
     @classmethod
@@ -441,6 +442,7 @@ class ReportMode:
             cluster_dim=f.opt("cluster_dim", _count),
             features=f.opt("features", lambda x, w: {
                 str(k): _number(v, f"{w}.{k}") for k, v in _dict(x, w).items()}),
+            estimator=f.opt("estimator", _str),
             extra=f.extra(),
         )
 
@@ -463,6 +465,7 @@ class ReportMode:
         _put(out, "cluster", self.cluster)
         _put(out, "cluster_dim", self.cluster_dim)
         _put(out, "features", None if self.features is None else dict(self.features))
+        _put(out, "estimator", self.estimator)
         out.update(self.extra)
         return out
 
@@ -959,6 +962,7 @@ def _mode_content(mode: IdentifiedMode) -> dict[str, Any]:
         "cluster": mode.cluster,
         "cluster_dim": mode.cluster_dim,
         "features": dict(mode.features),
+        "estimator": mode.estimator,
     }
 
 

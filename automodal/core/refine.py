@@ -39,6 +39,18 @@ MAX_MOVE = 3.0
 (``|Re lambda|``) from the subspace estimate; one that moves further (a fit that drifted
 to a neighbour or into noise) is not refined, and keeps its bootstrap statistics."""
 
+MAX_DAMPING_CHANGE = 3.0
+"""Nor may its half-bandwidth change by more than this factor: a pole that collapses onto
+one noisy line (or spreads over the band) is no longer the mode the bootstrap found."""
+
+
+RESIDUAL_POWERS = (-2, -1, 0, 1, 2)
+"""Powers of ``s`` in the basis, with complex coefficients: the residual terms of the modes
+outside the band (below it ``1/s^2`` in displacement, ``1/s`` in velocity, a constant in
+acceleration; above it a constant, ``s``, ``s^2`` likewise). At high SNR an out-of-band
+mode's smooth tail, left to the nearest fixed poles, biased in-band poles by tens of their
+standard deviations (measured on a velocity grid whose upper modes lie above the band)."""
+
 
 @dataclass(frozen=True)
 class PoleRefinement:
@@ -110,26 +122,74 @@ def separable_weights(variance: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.exp(row), np.exp(col)
 
 
+def _stack(X: np.ndarray) -> np.ndarray:
+    """Complex ``(N, k)`` as real ``(2N, k)``: real parts over imaginary parts."""
+    return np.concatenate([X.real, X.imag], axis=0)
+
+
+def _pair_columns(s: np.ndarray, lam: np.ndarray) -> np.ndarray:
+    """The two real-coefficient columns of each pole pair, ``(N, 2k)`` complex:
+    ``1/(s - lambda) + 1/(s - conj lambda)`` (the residue's real part) and
+    ``i [1/(s - lambda) - 1/(s - conj lambda)]`` (its imaginary part), per pole in turn.
+    A real system's FRF is ``R/(s - lambda) + conj(R)/(s - conj lambda)``: tying the two
+    terms keeps the pair's smooth conjugate term from becoming a free column (those are
+    nearly collinear across poles)."""
+    a = 1.0 / (s[:, None] - lam[None, :])
+    b = 1.0 / (s[:, None] - lam.conj()[None, :])
+    out = np.empty((s.size, 2 * lam.size), dtype=complex)
+    out[:, 0::2] = a + b
+    out[:, 1::2] = 1j * (a - b)
+    return out
+
+
+def _pair_derivatives(s: np.ndarray, lam: np.ndarray) -> np.ndarray:
+    """Derivatives of :func:`_pair_columns`, ``(N, 4k)`` complex: per pole, the two columns
+    with respect to ``Re lambda``, then the two with respect to ``Im lambda``."""
+    a2 = 1.0 / (s[:, None] - lam[None, :]) ** 2
+    b2 = 1.0 / (s[:, None] - lam.conj()[None, :]) ** 2
+    out = np.empty((s.size, 4 * lam.size), dtype=complex)
+    out[:, 0::4] = a2 + b2  # d(first) / d Re
+    out[:, 1::4] = 1j * (a2 - b2)  # d(second) / d Re
+    out[:, 2::4] = 1j * (a2 - b2)  # d(first) / d Im
+    out[:, 3::4] = -(a2 + b2)  # d(second) / d Im
+    return out
+
+
+def _fixed_columns(s: np.ndarray, fixed: np.ndarray) -> np.ndarray:
+    """Columns of the fixed poles (pairs as in :func:`_pair_columns`, real poles one real
+    column) and the residual terms (:data:`RESIDUAL_POWERS`), ``(N, k)`` complex with real
+    coefficients."""
+    fixed = np.asarray(fixed, dtype=complex)
+    scale = np.maximum(np.abs(fixed), 1e-300)
+    real = np.abs(fixed.imag) <= 1e-9 * scale
+    pairs = fixed[(fixed.imag > 0) & ~real]
+    x = s / np.sqrt(np.abs(s[0] * s[-1]))  # i omega over the band's geometric centre
+    powers = np.stack([x**k for k in RESIDUAL_POWERS], axis=1)
+    cols = [_pair_columns(s, pairs), 1.0 / (s[:, None] - fixed[real].real[None, :]),
+            powers, 1j * powers]
+    return np.concatenate(cols, axis=1)
+
+
 @dataclass(frozen=True)
 class _Problem:
-    """The weighted data with the fixed part of the basis projected out once
-    (Frisch-Waugh-Lovell: the free poles' residues and residual are those of the full
+    """The weighted data, stacked real, with the fixed part of the basis projected out
+    once (Frisch-Waugh-Lovell: the free poles' residues and residual are those of the full
     regression)."""
 
     s: np.ndarray  # i omega, (N,)
     sw: np.ndarray  # square root of the line weights, (N,)
-    Qf: np.ndarray  # orthonormal basis of the weighted fixed columns and constant, (N, p)
-    Yf: np.ndarray  # whitened data with the fixed part projected out, (N, E)
+    Qf: np.ndarray  # orthonormal basis of the weighted fixed columns, (2N, p)
+    Yf: np.ndarray  # whitened data, fixed part projected out, (2N, E)
 
     @classmethod
     def make(cls, s: np.ndarray, sw: np.ndarray, Y: np.ndarray, fixed: np.ndarray) -> _Problem:
-        cols = np.concatenate([1.0 / (s[:, None] - fixed[None, :]), np.ones((s.size, 1))], 1)
-        Qf = _orthonormal(sw[:, None] * cols)
-        return cls(s=s, sw=sw, Qf=Qf, Yf=Y - Qf @ (Qf.conj().T @ Y))
+        Qf = _orthonormal(_stack(sw[:, None] * _fixed_columns(s, fixed)))
+        Ys = _stack(Y)
+        return cls(s=s, sw=sw, Qf=Qf, Yf=Ys - Qf @ (Qf.T @ Ys))
 
     def off_fixed(self, X: np.ndarray) -> np.ndarray:
-        """``X`` with the fixed columns projected out."""
-        return X - self.Qf @ (self.Qf.conj().T @ X)
+        """Stacked ``X`` with the fixed columns projected out."""
+        return X - self.Qf @ (self.Qf.T @ X)
 
 
 def _orthonormal(Phi: np.ndarray) -> np.ndarray:
@@ -144,51 +204,52 @@ def _orthonormal(Phi: np.ndarray) -> np.ndarray:
 def _fit(
     prob: _Problem, free: np.ndarray
 ) -> tuple[float, np.ndarray, np.ndarray, np.ndarray]:
-    """Residues of the free columns and residual of the linear fit at given free poles.
+    """Residues of the free poles and residual of the linear fit at given free poles.
 
-    Returns ``cost, C, R, Qp``: ``|R|^2`` summed, the coefficients ``(2m, E)`` of the
-    columns ``1/(s - lambda_r)`` then ``1/(s - conj lambda_r)``, the residual ``(N, E)``
-    and the orthonormal basis of the free columns off the fixed ones.
+    Returns ``cost, C, R, Qp``: the squared residual summed, the real coefficients
+    ``(2m, E)`` of :func:`_pair_columns` (``Re``, ``Im`` of each residue in turn), the
+    stacked residual ``(2N, E)`` and the orthonormal basis of the free columns off the
+    fixed ones.
     """
-    Phi = prob.sw[:, None] / (prob.s[:, None] - np.concatenate([free, free.conj()])[None, :])
-    P = prob.off_fixed(Phi)
+    P = prob.off_fixed(_stack(prob.sw[:, None] * _pair_columns(prob.s, free)))
     norms = np.linalg.norm(P, axis=0)
     norms = np.where(norms > 0, norms, 1.0)
     Qp, Rt = np.linalg.qr(P / norms[None, :])
-    QY = Qp.conj().T @ prob.Yf
+    QY = Qp.T @ prob.Yf
     R = prob.Yf - Qp @ QY
     try:
         C = np.linalg.solve(Rt, QY) / norms[:, None]
     except np.linalg.LinAlgError:
         C = np.linalg.lstsq(Rt, QY, rcond=None)[0] / norms[:, None]
-    return float(np.vdot(R, R).real), C, R, Qp
+    return float(np.sum(R * R)), C, R, Qp
+
+
+def _jacobian_parts(
+    prob: _Problem, free: np.ndarray, C: np.ndarray, Qp: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Derivative columns ``D`` (stacked, ``(2N, 4m)``), the same projected off the whole
+    basis (``PD``) and the coefficient row that multiplies each (``(4m, E)``): Kaufman's
+    Jacobian of parameter ``t`` (``Re lambda_r`` or ``Im lambda_r``) is
+    ``-sum PD[:, a] Cx[a]^T`` over its two columns ``a``."""
+    D = _stack(prob.sw[:, None] * _pair_derivatives(prob.s, free))
+    PD = prob.off_fixed(D)
+    PD = PD - Qp @ (Qp.T @ PD)
+    Cx = np.repeat(C.reshape(free.size, 2, -1)[:, None], 2, axis=1).reshape(4 * free.size, -1)
+    return D, PD, Cx
 
 
 def _normal_equations(
     prob: _Problem, free: np.ndarray, C: np.ndarray, R: np.ndarray, Qp: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
     """Gauss-Newton normal matrix ``J^T J`` and gradient ``J^T r`` in the real parameters
-    ``(Re lambda_1, Im lambda_1, ...)`` with Kaufman's variable-projection Jacobian
-    ``J_t = -P (dPhi/dtheta_t) C`` (``P`` the projection off the whole basis)."""
-    m = free.size
-    s = prob.s
-    D = prob.sw[:, None] * np.concatenate(
-        [1.0 / (s[:, None] - free[None, :]) ** 2, 1.0 / (s[:, None] - free.conj()[None, :]) ** 2],
-        axis=1,
-    )  # (N, 2m): derivative of each free column with respect to its pole
-    PD = prob.off_fixed(D)
-    PD = PD - Qp @ (Qp.conj().T @ PD)
-    W = (PD.conj().T @ PD) * (C @ C.conj().T).conj()
-    u = np.sum(C.conj() * (D.conj().T @ R), axis=1)
-    # parameter t = 2r (Re lambda_r) moves both columns by +1, t = 2r + 1 (Im) by +i, -i
-    Tm = np.zeros((2 * m, 2 * m), dtype=complex)
-    r = np.arange(m)
-    Tm[r, 2 * r] = 1.0
-    Tm[m + r, 2 * r] = 1.0
-    Tm[r, 2 * r + 1] = 1j
-    Tm[m + r, 2 * r + 1] = -1j
-    normal = (Tm.conj().T @ W @ Tm).real
-    grad = -(Tm.conj().T @ u).real
+    ``(Re lambda_1, Im lambda_1, ...)`` (variable projection with Kaufman's Jacobian)."""
+    D, PD, Cx = _jacobian_parts(prob, free, C, Qp)
+    W = (PD.T @ PD) * (Cx @ Cx.T)
+    u = np.sum(Cx * (D.T @ R), axis=1)  # R is orthogonal to the basis: D^T R = PD^T R
+    # parameter t owns columns 2t and 2t + 1 of D
+    n = 2 * free.size
+    normal = W.reshape(n, 2, n, 2).sum(axis=(1, 3))
+    grad = -u.reshape(n, 2).sum(axis=1)
     return normal, grad
 
 
@@ -245,7 +306,8 @@ def refine_poles(
     free : ndarray, shape (m,)
         Starting poles to refine (rad/s, ``Im > 0``), e.g. the subspace estimate's.
     fixed : ndarray, shape (q,)
-        Other poles of the model (any; a conjugate pair as both its poles), kept fixed.
+        Other poles of the model, kept fixed: a pole pair by its pole with ``Im > 0`` (its
+        conjugate, if given too, is ignored), a real pole as itself.
     max_iterations : int
         Gauss-Newton iterations at most.
 
@@ -281,10 +343,13 @@ def refine_poles(
     poles, it = free0.copy(), 0
     for _ in range(3):  # refit with the poles that failed held fixed
         idx = np.flatnonzero(ok)
-        held = np.concatenate([free0[~ok], free0[~ok].conj(), fixed])
+        held = np.concatenate([free0[~ok], fixed])
         got, it = _gauss_newton(_Problem.make(s, sw, Y, held), free0[idx], max_iterations)
         half = np.maximum(np.abs(free0[idx].real), 1e-12)
-        bad = (np.abs(got - free0[idx]) > MAX_MOVE * half) | (got.real >= 0) | (got.imag <= 0)
+        ratio = np.abs(got.real) / half
+        bad = ((np.abs(got - free0[idx]) > MAX_MOVE * half) | (got.real >= 0)
+               | (got.imag <= 0) | (ratio > MAX_DAMPING_CHANGE)
+               | (ratio < 1.0 / MAX_DAMPING_CHANGE))
         if not bad.any():
             poles = free0.copy()
             poles[idx] = got
@@ -293,7 +358,7 @@ def refine_poles(
         if not ok.any():
             break
     idx = np.flatnonzero(ok)
-    held = np.concatenate([free0[~ok], free0[~ok].conj(), fixed])
+    held = np.concatenate([free0[~ok], fixed])
     if idx.size == 0:
         return PoleRefinement(free0.copy(), nan_cov, np.full(m, np.nan),
                               np.zeros((m, ny, nu), complex), ok, it)
@@ -307,24 +372,24 @@ def refine_poles(
     # each complex whitened residual has E|e|^2 = 1: real and imaginary parts 1/2 each
     cov_free = 0.5 * np.stack([info_inv[2 * i: 2 * i + 2, 2 * i: 2 * i + 2]
                                for i in range(idx.size)])
-    leverage = np.sum(np.abs(prob.Qf) ** 2, axis=1) + np.sum(np.abs(Qp) ** 2, axis=1)
-    leverage = np.clip(leverage, 0.0, 1.0 - 1e-9)  # of the linear part, per line
-    r2 = np.abs(R) ** 2 / (1.0 - leverage)[:, None]  # residual power, leverage-corrected
-    PD = sw[:, None] / (s[:, None] - poles[idx][None, :]) ** 2
-    PD = prob.off_fixed(PD)
-    PD = np.abs(PD - Qp @ (Qp.conj().T @ PD)) ** 2  # where each pole's information lies
+    # leverage of the linear part per stacked row; residual power corrected for it
+    leverage = np.clip(np.sum(prob.Qf**2, axis=1) + np.sum(Qp**2, axis=1), 0.0, 1.0 - 1e-9)
+    r2 = R**2 / (1.0 - leverage)[:, None]
+    _, PD, Cx = _jacobian_parts(prob, poles[idx], C, Qp)
     disp = np.full(m, np.nan)
     cov = nan_cov.copy()
     residues = np.zeros((m, ny, nu), complex)
     for j, i in enumerate(idx):
-        # the information-weighted mean of the residual power over its expectation (1):
-        # the noise model's error and the model's own misfit where this pole is measured
-        w = PD[:, j][:, None] * (np.abs(C[j]) ** 2)[None, :]
+        # the information-weighted mean of the residual power over its expectation (1/2
+        # per real component): the noise model's error and the model's own misfit where
+        # this pole is measured (a quasi-likelihood dispersion)
+        cols = slice(4 * j, 4 * j + 4)
+        w = np.einsum("ka,ae->ke", PD[:, cols] ** 2, Cx[cols] ** 2)
         total = float(np.sum(w))
-        disp[i] = float(np.sum(w * r2)) / total if total > 0 else np.nan
+        disp[i] = 2.0 * float(np.sum(w * r2)) / total if total > 0 else np.nan
         scale = disp[i] if np.isfinite(disp[i]) else 1.0
         cov[i] = cov_free[j] * scale
-        residues[i] = (C[j] * entry_std).reshape(ny, nu)
+        residues[i] = ((C[2 * j] + 1j * C[2 * j + 1]) * entry_std).reshape(ny, nu)
         if not np.all(np.isfinite(cov[i])) or cov[i, 0, 0] < 0 or cov[i, 1, 1] < 0:
             ok[i] = False
             poles[i] = free0[i]

@@ -229,8 +229,6 @@ def refine_physical_modes(
     free = states[free_states]
     keep = np.ones(states.size, bool)
     keep[free_states] = False
-    band = (np.abs(states.imag) >= omega[0]) & (np.abs(states.imag) <= omega[-1])
-    keep &= ~band
     for lam in free:
         keep[int(np.argmin(np.abs(states - np.conj(lam))))] = False
         near = np.abs(states - lam) < NEAR_POLE * abs(lam.real)
