@@ -232,12 +232,6 @@ def test_misfit_scan_drops_to_zero_at_the_true_order():
     assert np.all(misfit[1:] < 1e-6)  # exact from order 4 on
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="known behaviour (reported, not fixed): order_at_floor has no absolute floor, so "
-    "on noise-free data rounding decides; the scan of the exact 2-mode system gave "
-    "MC = [0.81, 1.4e-14, 5.9e-15, 1.2e-10] at orders 2-8, and n0 = 6 instead of 4",
-)
 def test_rounding_level_misfits_count_as_the_floor():
     misfit = np.array([0.806, 1.42e-14, 5.87e-15, 1.22e-10])
     assert order_at_floor(np.array([2, 4, 6, 8]), misfit) == 4

@@ -126,24 +126,14 @@ def test_one_member_cluster_with_typical_features_is_not_physical():
     assert physicalness(feats)[0] < 0.5
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="known behaviour (reported, not fixed): occurrence 0.01 is outweighed by the other "
-    "features; features [0.01, -5, -4.5, 0] (one member of 100 replicates, otherwise the "
-    "physical prototype) give physicalness 0.91",
-)
 def test_one_member_cluster_with_perfect_other_features_is_not_physical():
+    """One member of 100 replicates, otherwise the physical prototype (was 0.91)."""
     f = cluster_features(1, 100, 1, np.array([1.0 - 1e-5]), np.array([10**-4.5]), 1.0)
     assert physicalness(f)[0] < 0.5
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="known behaviour (reported, not fixed): a noise cluster whose members reproduce "
-    "the same pole (scatter 10^-7.5) is called physical: features [0.4, -1, -7.5, -2.3] "
-    "give 0.95 (and 10^-7.75 gives 0.55: not monotone either)",
-)
 def test_noise_cluster_with_tiny_pole_scatter_is_not_physical():
+    """A noise cluster whose members repeat one pole (scatter 10^-7.5; was 0.95)."""
     assert physicalness(np.array([0.4, -1.0, -7.5, -2.3]))[0] < 0.5
 
 

@@ -19,6 +19,7 @@ from automodal.core.magnitude import (
     peak_threshold,
     roughness,
 )
+from automodal.core.whitening import MODEL_PRECISION
 from automodal.errors import InputError
 
 BOOTSTRAP_LINE_FRACTION = 0.6
@@ -84,7 +85,9 @@ def order_at_floor(
     ok = np.isfinite(misfit)
     floor = float(np.median(misfit[ok][ok.sum() // 2 :]))
     top = float(np.max(misfit[ok]))
-    limit = min(factor * floor, floor + fraction * (top - floor))
+    # a misfit at the identification's own precision is the floor whatever the others:
+    # on noise-free data rounding (1e-14 against 1e-10) must not decide the order
+    limit = max(min(factor * floor, floor + fraction * (top - floor)), MODEL_PRECISION)
     reached = np.flatnonzero(ok & (misfit <= limit))
     return int(orders[reached[0]]) if reached.size else int(orders[-1])
 

@@ -80,6 +80,12 @@ SNR^2 that fitting noise gives a spurious mode, about its ``p`` parameters (rati
 SNR_FEATURE_SCALE = np.array([0.3, 1.5, 1.0, 0.5])
 """Standardisation with the SNR feature (half a decade of SNR^2 per unit)."""
 
+SPORADIC = 0.1
+"""A cluster seen by fewer than this share of the replicates has its physicalness scaled
+down in proportion (one member of 100 replicates: a tenth). Not the majority: a clear mode
+next to a band edge was found by only a quarter of the replicates (tests/test_edge_cases.py)
+and is still a mode; on the noise path :func:`vetoed` applies the majority rule."""
+
 MAJORITY = 0.5
 """A cluster found by fewer than this share of the replicates (occurrence) is never
 physical: a mode of the data must be seen by most resamples of it."""
@@ -187,7 +193,8 @@ def physicalness(
     Returns
     -------
     ndarray, shape (n_clusters,)
-        Physicalness in [0, 1].
+        Physicalness in [0, 1]: the membership, times ``occurrence / SPORADIC`` for a
+        cluster seen by fewer than :data:`SPORADIC` of the replicates.
     """
     import skfuzzy
 
@@ -199,6 +206,11 @@ def physicalness(
         scale, phys_p, noise_p = SNR_FEATURE_SCALE, SNR_PHYSICAL_PROTOTYPE, SNR_NOISE_PROTOTYPE
     else:
         scale, phys_p, noise_p = FEATURE_SCALE, PHYSICAL_PROTOTYPE, NOISE_PROTOTYPE
+    # a decorrelation or scatter beyond the physical prototype's is as physical as the
+    # prototype (not farther from it): otherwise a noise cluster whose few members repeat
+    # one pole exactly would look less like noise the tighter it is
+    features = features.copy()
+    features[:, 1:3] = np.maximum(features[:, 1:3], phys_p[1:3])
     X = features / scale
     protos = np.vstack([phys_p, noise_p]) / scale
     copies = max(1, int(round(anchor_weight * n)))
@@ -209,4 +221,7 @@ def physicalness(
     if phys == int(np.argmin(np.linalg.norm(centres - protos[1], axis=1))):
         centres = protos  # both centres collapsed onto one side: fall back to the prototypes
         phys = 0
-    return _memberships(X, centres, m)[phys]
+    # a cluster seen by fewer than SPORADIC of the replicates loses membership in
+    # proportion: one member of 100 replicates is never physical, whatever its shape
+    minority = np.clip(features[:, 0] / SPORADIC, 0.0, 1.0)
+    return _memberships(X, centres, m)[phys] * minority
