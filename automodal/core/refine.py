@@ -269,7 +269,8 @@ def _gauss_newton(
     cost, C, R, Qp = _fit(prob, free)
     damping = 1e-3
     it = 0
-    for it in range(1, max_iterations + 1):
+    for _ in range(max_iterations):
+        it += 1
         normal, grad = _normal_equations(prob, free, C, R, Qp)
         diag = np.diag(normal).copy()
         diag = np.where(diag > 0, diag, 1.0)
