@@ -14,8 +14,10 @@ sections 1-6):
    sums, stacked small problems in parallel threads;
 5. clustering (:func:`automodal.core.reference.cluster_against_reference`): one-pass
    assignment with a Trashbox, trimming;
-6. physicalness and statistics (:func:`automodal.core.summary.summarise_clusters`), and
-   the FRF of the physical modes.
+6. physicalness and statistics (:func:`automodal.core.summary.summarise_clusters`);
+7. the physical modes' poles refined by noise-weighted maximum likelihood, with
+   Cramér-Rao intervals (:func:`automodal.core.summary.refine_physical_modes`), and the
+   FRF of the physical modes.
 
 :class:`Settings` lives in :mod:`automodal.settings`, :class:`Result`,
 :class:`IdentifiedMode` and :class:`PoleTable` in :mod:`automodal.result`; they are
