@@ -112,10 +112,7 @@ class Prepared:
     @property
     def noise_variance(self) -> np.ndarray | None:
         """The noise variance oriented like ``H`` (data units), or ``None``."""
-        if self.noise is None:
-            return None
-        v = self.noise.variance
-        return v.transpose(0, 2, 1) if self.reciprocal else v
+        return None if self.noise is None else _oriented(self.noise.variance, self.reciprocal)
 
     @property
     def window_decay(self) -> float:
@@ -147,7 +144,7 @@ def prepare(data: FRFData, s: Settings, warnings: list[str]) -> Prepared:
         Hs = H / scales[None, :, None]
         weights = subspace.envelope_weights(Hs)
     else:
-        variance = noise.variance.transpose(0, 2, 1) if reciprocal else noise.variance
+        variance = _oriented(noise.variance, reciprocal)
         weights, scales = whitening.whitening(variance)
         Hs = H / scales[None, :, None]
         variance = variance / (scales**2)[None, :, None]
@@ -156,6 +153,12 @@ def prepare(data: FRFData, s: Settings, warnings: list[str]) -> Prepared:
         z=to_unit_circle(omega, T), scales=scales, Hs=Hs, line_weights=weights,
         noise=noise, variance=variance,
     )
+
+
+def _oriented(variance: np.ndarray, reciprocal: bool) -> np.ndarray:
+    """A per-entry array of the data's orientation in the analysed one (swapped inputs and
+    outputs under reciprocity)."""
+    return variance.transpose(0, 2, 1) if reciprocal else variance
 
 
 def _estimate_noise(data: FRFData, freq: np.ndarray, H: np.ndarray) -> NoiseEstimate:

@@ -1,4 +1,4 @@
-"""Maximum-likelihood refinement of chosen poles, and their Cramér-Rao covariance.
+"""Maximum-likelihood refinement of chosen poles, and their covariance.
 
 The subspace estimate is consistent but not efficient: on noisy data its poles err by
 several times what the noise allows, and a bootstrap over frequency lines measures the
@@ -6,19 +6,20 @@ spread of re-fits of one noise realization, not that error. Given the noise mode
 poles of the modes called physical are refined by weighted nonlinear least squares (the
 maximum-likelihood estimate for Gaussian noise) of a pole-residue model,
 
-    H(s) = D + sum_r [ A_r / (s - lambda_r) + B_r / (s - conj(lambda_r)) ]
-             + sum_q  E_q / (s - nu_q),                       s = i omega,
+    H(s) = sum_r [ R_r / (s - lambda_r) + conj(R_r) / (s - conj(lambda_r)) ]
+           + sum_q (the same for the fixed poles nu_q) + sum_k c_k s^k,      s = i omega,
 
-with free complex residues per FRF entry (linear, eliminated by variable projection), the
-chosen poles ``lambda_r`` free and the other poles ``nu_q`` of the over-sized model kept
-fixed (they carry the structure the chosen modes do not explain). The poles' covariance is
-the inverse Fisher information of the projected problem (Golub and Pereyra 1973; Kaufman
-1975, whose Jacobian the Gauss-Newton steps use), scaled by how much the local residual
-exceeds the noise model (a quasi-likelihood dispersion).
+with residues per FRF entry (linear, eliminated by variable projection), the chosen poles
+``lambda_r`` free, the other poles ``nu_q`` of the over-sized model kept fixed (they carry
+the structure the chosen modes do not explain) and residual terms for the modes outside
+the band. The Gauss-Newton steps use Kaufman's Jacobian (Golub and Pereyra 1973; Kaufman
+1975). The poles' covariance is the larger of the noise model's inverse Fisher information
+and a clustered sandwich (which sees what the noise model misses), with a small-sample
+correction.
 
 The weighting is separable: the noise variance of line ``k`` and entry ``e`` is fitted as
 ``v_k c_e`` (a two-way model of its logarithm), so every entry shares one basis; the
-dispersion absorbs what that model misses.
+sandwich accounts for what that model misses.
 """
 
 from __future__ import annotations
@@ -76,8 +77,6 @@ class PoleRefinement:
         Trace of the robust (line-clustered sandwich) covariance over that of the noise
         model's inverse Fisher information (about 1 when the model and the noise model
         agree; more when the residual exceeds the noise or is correlated across entries).
-    residues : ndarray, shape (m, ny, nu)
-        Residue matrix of each pole's ``1 / (s - lambda)`` term.
     refined : ndarray of bool, shape (m,)
         Whether each pole was refined.
     iterations : int
@@ -87,7 +86,6 @@ class PoleRefinement:
     poles: np.ndarray
     covariance: np.ndarray
     dispersion: np.ndarray
-    residues: np.ndarray
     refined: np.ndarray
     iterations: int
 
@@ -295,6 +293,16 @@ def _gauss_newton(
     return free, it
 
 
+def _block_sums(X: np.ndarray) -> np.ndarray:
+    """Rows of a stacked ``(2N, k)`` array summed per line (real and imaginary rows) and
+    then per block of :data:`CLUSTER_LINES` lines (the last block padded)."""
+    n = X.shape[0] // 2
+    per_line = X[:n] + X[n:]
+    pad = (-n) % CLUSTER_LINES
+    per_line = np.vstack([per_line, np.zeros((pad, X.shape[1]))])
+    return per_line.reshape(-1, CLUSTER_LINES, X.shape[1]).sum(axis=1)
+
+
 def _small_sample(clusters: float) -> float:
     """Variance factor of a clustered sandwich from ``clusters`` effective clusters: the
     usual ``G / (G - 1)``, and ``(t_{0.975, G-1} / 1.96)^2`` so that the reported
@@ -346,43 +354,40 @@ def refine_poles(
     """
     omega = np.asarray(omega, dtype=float)
     H = np.asarray(H)
-    N, ny, nu = H.shape
+    N = H.shape[0]
     free0 = np.asarray(free, dtype=complex).ravel()
     fixed = np.asarray(fixed, dtype=complex).ravel()
     m = free0.size
     nan_cov = np.full((m, 2, 2), np.nan)
     if m == 0 or N < 2 * (2 * m + fixed.size + 1):
-        return PoleRefinement(free0.copy(), nan_cov, np.full(m, np.nan),
-                              np.zeros((m, ny, nu), complex), np.zeros(m, bool), 0)
+        return PoleRefinement(free0.copy(), nan_cov, np.full(m, np.nan), np.zeros(m, bool), 0)
     line_var, entry_var = separable_weights(np.asarray(variance, float).reshape(N, -1))
     sw = 1.0 / np.sqrt(line_var)
     entry_std = np.sqrt(entry_var)
     Y = sw[:, None] * H.reshape(N, -1) / entry_std[None, :]
     s = 1j * omega
     ok = np.ones(m, bool)
-    poles, it = free0.copy(), 0
+    poles, it, prob = free0.copy(), 0, None
     for _ in range(3):  # refit with the poles that failed held fixed
         idx = np.flatnonzero(ok)
-        held = np.concatenate([free0[~ok], fixed])
-        got, it = _gauss_newton(_Problem.make(s, sw, Y, held), free0[idx], max_iterations)
+        prob = _Problem.make(s, sw, Y, np.concatenate([free0[~ok], fixed]))
+        got, it = _gauss_newton(prob, free0[idx], max_iterations)
         half = np.maximum(np.abs(free0[idx].real), 1e-12)
         ratio = np.abs(got.real) / half
         bad = ((np.abs(got - free0[idx]) > MAX_MOVE * half) | (got.real >= 0)
                | (got.imag <= 0) | (ratio > MAX_DAMPING_CHANGE)
                | (ratio < 1.0 / MAX_DAMPING_CHANGE))
+        ok[idx[bad]] = False
         if not bad.any():
-            poles = free0.copy()
             poles[idx] = got
             break
-        ok[idx[bad]] = False
         if not ok.any():
             break
+    else:  # still failing after the last refit: nothing is refined
+        ok[:] = False
     idx = np.flatnonzero(ok)
-    held = np.concatenate([free0[~ok], fixed])
     if idx.size == 0:
-        return PoleRefinement(free0.copy(), nan_cov, np.full(m, np.nan),
-                              np.zeros((m, ny, nu), complex), ok, it)
-    prob = _Problem.make(s, sw, Y, held)
+        return PoleRefinement(free0.copy(), nan_cov, np.full(m, np.nan), ok, it)
     cost, C, R, Qp = _fit(prob, poles[idx])
     normal, _ = _normal_equations(prob, poles[idx], C, R, Qp)
     try:
@@ -400,24 +405,15 @@ def refine_poles(
     # entries (real and imaginary rows together), so errors correlated across the entries
     # of a line (an H1 estimate's shared force noise) or between neighbouring lines (a
     # window's leakage), or not matching the separable model, count as they are
-    n_lines = Rc.shape[0] // 2
     score = -(PD * (Rc @ Cx.T))  # (2N, 4m): per row, each derivative column's share
-    score = score.reshape(score.shape[0], -1, 2).sum(axis=2)  # per parameter, (2N, 2m)
-    score = score[:n_lines] + score[n_lines:]
-    pad = (-n_lines) % CLUSTER_LINES
-    score = np.vstack([score, np.zeros((pad, score.shape[1]))])
-    score = score.reshape(-1, CLUSTER_LINES, score.shape[1]).sum(axis=1)
+    score = _block_sums(score.reshape(score.shape[0], -1, 2).sum(axis=2))  # (blocks, 2m)
     robust = info_inv @ (score.T @ score) @ info_inv
-    # where each pole's information lies, per cluster of lines: its effective number of
-    # clusters (Kish) sets a small-sample correction of the sandwich
-    info = np.einsum("ka,ae->ka", PD**2, Cx**2)
-    info = info[:n_lines] + info[n_lines:]
-    info = np.vstack([info, np.zeros((pad, info.shape[1]))])
-    info = info.reshape(-1, CLUSTER_LINES, info.shape[1]).sum(axis=1)
-    info = info.reshape(info.shape[0], -1, 4).sum(axis=2)  # per pole
+    # where each pole's information lies, per block: its effective number of blocks (Kish)
+    # sets a small-sample correction of the sandwich
+    info = _block_sums(PD**2 * np.sum(Cx**2, axis=1)[None, :])
+    info = info.reshape(info.shape[0], -1, 4).sum(axis=2)  # per pole, (blocks, m)
     disp = np.full(m, np.nan)
     cov = nan_cov.copy()
-    residues = np.zeros((m, ny, nu), complex)
     for j, i in enumerate(idx):
         block = slice(2 * j, 2 * j + 2)
         model = cov_free[j]
@@ -427,10 +423,9 @@ def refine_poles(
         # when a sharp resonance spreads its information over a few lines
         disp[i] = float(np.trace(sand) / np.trace(model)) if np.trace(model) > 0 else np.nan
         cov[i] = sand if np.isfinite(disp[i]) and disp[i] > 1.0 else model
-        residues[i] = ((C[2 * j] + 1j * C[2 * j + 1]) * entry_std).reshape(ny, nu)
         if not np.all(np.isfinite(cov[i])) or cov[i, 0, 0] < 0 or cov[i, 1, 1] < 0:
             ok[i] = False
             poles[i] = free0[i]
             cov[i] = np.nan
-    return PoleRefinement(poles=poles, covariance=cov, dispersion=disp, residues=residues,
-                          refined=ok, iterations=it)
+    return PoleRefinement(poles=poles, covariance=cov, dispersion=disp, refined=ok,
+                          iterations=it)

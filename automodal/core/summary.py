@@ -8,10 +8,14 @@ and the cluster's physicalness (anchored fuzzy c-means on three features).
 
 from __future__ import annotations
 
+from collections import Counter
+from dataclasses import replace
+
 import numpy as np
 
 from automodal.core import clustering, physicalness
 from automodal.core.modal import ModeSet, mpc, normalise_shapes, unit_max_shapes
+from automodal.core.refine import refine_poles
 from automodal.result import IdentifiedMode
 
 
@@ -162,6 +166,11 @@ def summarise_clusters(
                     reference_mode=int(group[min(r, group.size - 1)]),
                 )
             )
+    return _numbered(modes)
+
+
+def _numbered(modes: list[IdentifiedMode]) -> list[IdentifiedMode]:
+    """The modes sorted by frequency, ``id`` from 1."""
     modes.sort(key=lambda m: m.frequency_hz)
     for i, m in enumerate(modes, start=1):
         m.id = i
@@ -216,11 +225,6 @@ def refine_physical_modes(
     pole_shift : float
         Added to the refined poles (an exponential window's decay).
     """
-    from collections import Counter
-    from dataclasses import replace
-
-    from automodal.core.refine import refine_poles
-
     counts = Counter(m.reference_mode for m in modes if m.physical and m.reference_mode >= 0)
     chosen = sorted(i for i, c in counts.items() if c == 1)
     if not chosen:
@@ -250,7 +254,4 @@ def refine_physical_modes(
             damping_ci95=(float(z[j] - 1.96 * z_std[j]), float(z[j] + 1.96 * z_std[j])),
             estimator="ml",
         ))
-    out.sort(key=lambda m: m.frequency_hz)
-    for i, m in enumerate(out, start=1):
-        m.id = i
-    return out
+    return _numbered(out)
