@@ -139,7 +139,8 @@ def prepare(data: FRFData, s: Settings, warnings: list[str]) -> Prepared:
     omega = 2.0 * np.pi * freq
     T = default_scale(omega[0], omega[-1])
     variance = None
-    if noise is None or s.weighting != "noise":
+    weighting = s.weighting_for(data.attributes.get("analysis") == "operational")
+    if noise is None or weighting != "noise":
         scales = subspace.channel_scales(H)
         Hs = H / scales[None, :, None]
         weights = subspace.envelope_weights(Hs)
@@ -247,7 +248,8 @@ def _identify(data: FRFData, s: Settings, progress: Callable[[int], None] | None
         warnings=warnings,
         poles=PoleTable.from_poles(reps.poles, clusters.labels, reps.replicate),
         band_hz=(float(p.band_hz[0]), float(p.band_hz[1])),
-        orders=_orders_info(choice, ref, reps.n_qr, p.T),
+        orders=_orders_info(choice, ref, reps.n_qr, p.T,
+                            "noise" if p.variance is not None else "envelope"),
         runtime_s=time.perf_counter() - t0,
         reference_model=ref.model,
         reciprocity=p.reciprocal,
@@ -298,6 +300,10 @@ def _replicates(
             f" (times {dispersion:.3g}, the reference model's residual over the noise)"
         )
     else:
+        if s.resample == "noise":
+            warnings.append("resample='noise' needs the noise weighting, which this run did"
+                            " not use (output-only data, or no noise model): frequency lines"
+                            " resampled instead")
         weights = bootstrap.line_weights(p.H.shape[0], s.n_bootstrap, rng)
         reps = replicates.run_replicates(
             ref.basis, p.Hs, n, p.T, weights * p.line_weights[None, :], s.jobs, progress
@@ -310,9 +316,11 @@ def _replicates(
 
 
 def _orders_info(
-    choice: order.OrderChoice, ref: reference.Reference, n_qr: int, T: float
+    choice: order.OrderChoice, ref: reference.Reference, n_qr: int, T: float,
+    weighting: str,
 ) -> dict[str, object]:
-    """``Result.orders``: the scan, the orders chosen and how the models were computed."""
+    """``Result.orders``: the scan, the orders chosen and how the models were computed
+    (``weighting``: the one that ran, ``"noise"`` or ``"envelope"``)."""
     return {
         "scanned": [int(x) for x in choice.scanned],
         "misfit": [float(x) for x in choice.misfit],
@@ -321,6 +329,7 @@ def _orders_info(
         "reference": int(choice.reference),
         "block_rows": int(ref.q),
         "basis": "monomial" if ref.basis.monomial else "orthonormal",
+        "weighting": weighting,
         "bilinear_T": float(T),
         "replicates_on_qr_path": int(n_qr),
         "reference_path": ref.model.path,

@@ -19,7 +19,7 @@ from automodal.errors import InputError
 RESAMPLE_CHOICES = ("auto", "lines", "records", "noise")
 """What a bootstrap replicate may resample (see :attr:`Settings.resample`)."""
 
-WEIGHTING_CHOICES = ("noise", "envelope")
+WEIGHTING_CHOICES = ("auto", "noise", "envelope")
 """How lines and channels are weighted (see :attr:`Settings.weighting`)."""
 
 MIN_ORDER = 4
@@ -76,17 +76,18 @@ class Settings:
         Poles closer than this many half-power bandwidths form one group, ``> 0``.
     resample : {"auto", "lines", "records", "noise"}
         What a bootstrap replicate resamples: the repeated records when the data have
-        at least two (``"auto"``), the frequency lines, or (``"noise"``, needs
-        ``weighting="noise"``) fresh noise of the noise model around the reference
+        at least two (``"auto"``), the frequency lines, or (``"noise"``, needs the
+        noise weighting) fresh noise of the noise model around the reference
         model's FRF.
-    weighting : {"envelope", "noise"}
+    weighting : {"auto", "noise", "envelope"}
         ``"noise"``: lines and channels whitened by the noise model
         (:mod:`automodal.core.noise`), orders by a significance test of the whitened
         residual, physicalness on each mode's SNR; ``"envelope"``: the earlier
-        stand-ins (envelope line weights, RMS channel scales, the misfit floor). The
-        default stays ``"envelope"`` until the noise path passes the whole suite (issue
-        13: it lost one mode on the Weimar ambient data and added one false mode on the
-        10-DOF chain at 5 %; benchmarks/results_issue13.md).
+        stand-ins (envelope line weights, RMS channel scales, the misfit floor);
+        ``"auto"`` (default): ``"noise"`` for FRFs, ``"envelope"`` for the half spectra of
+        output-only (operational) data, whose errors are correlated across lines by the
+        lag window, so the noise model's independent-line law does not hold (on the
+        Weimar ambient record the noise path lost two of the 11 reference modes).
     """
 
     band_hz: tuple[float, float] | None = None
@@ -99,7 +100,7 @@ class Settings:
     min_physicalness: float = 0.5
     coalescence: float = 1.0
     resample: str = "auto"
-    weighting: str = "envelope"
+    weighting: str = "auto"
 
     def __post_init__(self) -> None:
         self._check_band()
@@ -127,9 +128,16 @@ class Settings:
         if not (isinstance(self.weighting, str) and self.weighting in WEIGHTING_CHOICES):
             raise _refuse("weighting", self.weighting, "one of " + ", ".join(
                 repr(c) for c in WEIGHTING_CHOICES))
-        if self.resample == "noise" and self.weighting != "noise":
+        if self.resample == "noise" and self.weighting == "envelope":
             raise _refuse("resample", self.resample,
-                          "another choice than 'noise' when weighting is not 'noise'")
+                          "another choice than 'noise' when weighting is 'envelope'")
+
+    def weighting_for(self, operational: bool) -> str:
+        """The weighting a run uses: ``"noise"`` or ``"envelope"`` (``"auto"`` resolved:
+        envelope for output-only half spectra, noise otherwise)."""
+        if self.weighting != "auto":
+            return self.weighting
+        return "envelope" if operational else "noise"
 
     def _check_band(self) -> None:
         band = self.band_hz

@@ -15,7 +15,7 @@ import numpy as np
 
 from automodal.core import clustering, physicalness
 from automodal.core.modal import ModeSet, mpc, normalise_shapes, unit_max_shapes
-from automodal.core.refine import refine_poles
+from automodal.core.refine import duplicate_poles, refine_poles
 from automodal.result import IdentifiedMode
 
 
@@ -239,6 +239,11 @@ def refine_physical_modes(
         near |= np.abs(states - np.conj(lam)) < NEAR_POLE * abs(lam.real)
         keep &= ~near
     fit = refine_poles(omega, H, variance, free, states[keep])
+    refined = np.flatnonzero(fit.refined)
+    duplicate = np.zeros(free.size, bool)
+    duplicate[refined] = duplicate_poles(omega, H, variance, fit.poles[refined],
+                                         np.concatenate([fit.poles[~fit.refined],
+                                                         states[keep]]))
     shifted = replace(fit, poles=fit.poles + pole_shift)
     f, f_std, z, z_std = shifted.frequency_damping()
     out = []
@@ -247,6 +252,8 @@ def refine_physical_modes(
         if j < 0 or not fit.refined[j]:
             out.append(m)
             continue
+        if duplicate[j]:  # the data need no second pole there: a split resonance
+            m = replace(m, physical=False, physicalness=0.0)
         out.append(replace(
             m, frequency_hz=float(f[j]), frequency_std_hz=float(f_std[j]),
             frequency_ci95_hz=(float(f[j] - 1.96 * f_std[j]), float(f[j] + 1.96 * f_std[j])),
