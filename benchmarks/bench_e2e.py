@@ -1,4 +1,5 @@
-"""Benchmark: end-to-end ``automodal identify`` on the command line, interpreter start included.
+"""Benchmark: end-to-end ``automodal identify`` on the command line, interpreter start included,
+and the same cases through the peer, sdypy-EMA's LSCF.
 
 Cases (each a simulated test with known modes, written by ``automodal simulate``; the
 simulation is not timed):
@@ -8,12 +9,32 @@ simulation is not timed):
 * ``c``: roving hammer: 9-DOF chain, 1 accelerometer (DOF 5), 9 hit points, 51 201 lines.
 
 For each case the script runs ``automodal identify FILE`` (default settings: 100 bootstrap
-replicates, seed 0) as a child process ``--repeat`` times and reports the minimum wall time
-(``time.perf_counter`` around the whole child, so interpreter start, imports and file
-reading count) and the child's peak resident set size (GNU ``/usr/bin/time -f %M``: the
-largest of the child and its reaped worker processes, not their sum; see ``run_child``). The
-physical modes of the printed table are matched one-to-one to the true modes (within 1 % in
-frequency).
+replicates, seed 0) as a child process ``--repeat`` times and reports the MEDIAN wall time
+and every run's (``time.perf_counter`` around the whole child, so interpreter start, imports
+and file reading count) and the child's peak resident set size (GNU ``/usr/bin/time -f %M``:
+the largest of the child and its reaped worker processes, not their sum; see ``run_child``).
+The physical modes of the printed table are matched one-to-one to the true modes (within 1 %
+in frequency, closest pairs first): "true modes found" are the matched ones, "false" the
+physical rows left unmatched.
+
+**Peer** (cases a and b, ``PEER_CASES``; ``pip install -e '.[bench]'`` installs sdypy-EMA):
+the FRFs of the case go through sdypy-EMA's LSCF in a fresh interpreter (this file run with
+``--sdypy-child``), from FRF arrays read from a ``.npz`` to poles selected:
+``EMA.Model(frf, freq, lower=f[0], upper=f[-1], pol_order_high, frf_form)``,
+``get_poles('lscf')``, ``select_closest_poles(approx, f_window)``. ``EMA.Model`` takes a 2-D
+FRF array (locations x lines) only, so every output-input pair is one row ("location"): 6
+rows for case a, 40 x 3 = 120 rows for case b. sdypy-EMA needs a person to pick the poles on
+a stability chart; here it is handed the true natural frequencies rounded to 3 significant
+digits instead (its only non-interactive way to pick poles), which is more help than
+automodal gets. Its picks are counted like automodal's rows: distinct poles picked, matched
+one-to-one to the true modes within 1 %; the picked poles left unmatched are its false modes
+(a pole picked for two guesses counts once).
+
+The peer cases are INTERLEAVED: for each of the ``--repeat`` rounds, automodal runs on the
+case, then sdypy-EMA on the same case, each as a child process timed with its interpreter
+start; the report gives the medians of the rounds (and lists every run) and the ratio of the
+medians, automodal / sdypy-EMA. The goal (issue 13): automodal, with its full bootstrap, at
+most 0.8x the peer's wall time, at least as many true modes and no more false ones.
 
 Extra figures:
 
@@ -22,12 +43,9 @@ Extra figures:
   ``automodal.core.replicates.run_replicates`` (the 100 replicates, with the pipeline's
   arguments) is timed against one ``automodal.core.subspace.identify`` on the full data at
   the reference order and block rows that ``automodal.pipeline.identify`` reports in
-  ``result.orders``.
-* **Peer**: the FRFs of case a through sdypy-EMA's LSCF (``pip install -e '.[bench]'``), in a
-  fresh interpreter, from FRF arrays (read from a ``.npz``) to poles selected with
-  ``select_closest_poles``. sdypy-EMA needs a person to pick the poles on a stability chart;
-  here it is handed the true natural frequencies (rounded to 3 significant digits) instead,
-  which is more help than automodal gets.
+  ``result.orders`` (minimum of ``--repeat`` calls, warm).
+* **Compute only**: one in-process ``pipeline.identify`` (from the replicates part) against
+  sdypy-EMA's time from arrays to poles selected (median of its runs).
 
 Run ``python benchmarks/bench_e2e.py --help`` for the options.
 """
@@ -71,17 +89,29 @@ CASES = {
     },
 }
 RATIO_CASES = ("a", "b")  # replicates against one identification
-PEER_CASE = "a"  # sdypy-EMA comparison
+PEER_CASES = ("a", "b")  # sdypy-EMA comparison, interleaved with automodal
 MATCH_TOL = 0.01  # relative frequency tolerance of a found mode
 N_BOOTSTRAP = 100  # automodal's default, and what is timed
 
-# sdypy-EMA's settings for the peer case
-SDYPY_POL_ORDER_HIGH = 60  # the value of sdypy-EMA's documented example
-SDYPY_F_WINDOW_HZ = 5.0
-"""``select_closest_poles`` refines each guess within windows of ``f_window // i`` Hz (then
-2 Hz). Its default 50 Hz suits kHz data; on case a (modes 3.8-30.9 Hz) it pulled the picks
-onto wrong poles, so a window of 5 Hz (last window +-2 Hz, below the 2.7 Hz mode spacing)
-is passed: one more choice a person makes for sdypy-EMA."""
+SDYPY = {
+    "a": {"pol_order_high": 60, "f_window": 5.0},
+    "b": {"pol_order_high": 120, "f_window": 5.0},
+}
+"""sdypy-EMA's settings per peer case.
+
+``pol_order_high``: LSCF fits common-denominator polynomials of orders 2, 4, ...,
+2 ``pol_order_high``, so at most ``pol_order_high`` modes (conjugate pairs) can appear. 60 is
+the value of sdypy-EMA's documented example and is ample for case a's 6 modes; case b has 80
+modes in its band, so it needs more than 80: 120 (1.5 x the modes). One run each on case b
+(sdypy-EMA 0.31.0, f_window 5, 2 cores; true modes found / false / wall s): order 80: 45 / 2
+/ 2.3; 100: 57 / 1 / 3.8; 120: 59 / 1 / 6.2; 140: 63 / 2 / 9.4; 160: 62 / 3 / 14.2. With
+f_window 50, orders 100 and 120 found 4 true modes.
+
+``f_window``: ``select_closest_poles`` refines each guess within windows of ``f_window // i``
+Hz (those over 3 Hz), then 2 Hz. Its default 50 Hz suits kHz data; on case a (modes
+3.8-30.9 Hz) it pulled the picks onto wrong poles, so 5 Hz is passed, which leaves only the
+last window, +-2 Hz: the narrowest sdypy-EMA allows (one more choice a person makes for it).
+Case b's modes are as little as 0.05 Hz apart, so that window holds several modes."""
 
 
 # ---------------------------------------------------------------------------- helpers
@@ -90,11 +120,13 @@ is passed: one more choice a person makes for sdypy-EMA."""
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     ap = argparse.ArgumentParser(
         description="Time `automodal identify` end to end (interpreter start included) on "
-        "three simulated tests, the bootstrap against one identification, and sdypy-EMA's "
-        "LSCF on case a; print Markdown tables."
+        "three simulated tests, interleaved with sdypy-EMA's LSCF on cases a and b, and the "
+        "bootstrap against one identification; print Markdown tables."
     )
-    ap.add_argument("--repeat", type=int, default=3,
-                    help="runs per measurement; the minimum wall time is reported (default 3)")
+    ap.add_argument("--repeat", type=int, default=5,
+                    help="runs per measurement: child processes report the median wall time "
+                    "(automodal and sdypy-EMA interleaved, one of each per round), in-process "
+                    "timings the minimum (default 5)")
     ap.add_argument("--cases", default="a,b,c",
                     help="comma-separated subset of a,b,c (default a,b,c)")
     ap.add_argument("--out", metavar="FILE.md", help="also write the report to this file")
@@ -163,17 +195,11 @@ def run_child(cmd: list[str], cwd: str | Path | None = None) -> dict:
     return {"wall": wall, "peak_mb": kib / 1024.0, "stdout": stdout, "stderr": stderr}
 
 
-def repeat_child(cmd: list[str], repeat: int, cwd: str | Path | None = None) -> dict:
-    """``repeat`` runs of ``cmd``: minimum wall time, all wall times, largest peak RSS."""
-    runs = [run_child(cmd, cwd) for _ in range(repeat)]
-    best = min(runs, key=lambda r: r["wall"])
-    return {
-        "wall": best["wall"],
-        "walls": [r["wall"] for r in runs],
-        "peak_mb": max(r["peak_mb"] for r in runs),
-        "stdout": best["stdout"],
-        "stderr": best["stderr"],
-    }
+def median(xs: list[float]) -> float:
+    """The median (mean of the middle two for an even count)."""
+    ys = sorted(xs)
+    k = len(ys) // 2
+    return ys[k] if len(ys) % 2 else 0.5 * (ys[k - 1] + ys[k])
 
 
 def timed_min(fn, repeat: int) -> tuple[float, float, object]:
@@ -281,19 +307,80 @@ def simulate_case(key: str, workdir: Path) -> tuple[Path, list[str], list[float]
     return path, cmd, [float(f) for f in modes["frequency_hz"]]
 
 
-def bench_cli(key: str, path: Path, true_f: list[float], repeat: int) -> dict:
-    """``automodal identify FILE`` as a child process, ``repeat`` times."""
-    cmd = automodal_cmd() + ["identify", str(path)]
-    load_before = load_average()
-    res = repeat_child(cmd, repeat)
-    phys, rows = physical_frequencies(res["stdout"])
-    matched, extra = match_modes(phys, true_f)
-    summary = res["stdout"].strip().splitlines()[-1] if res["stdout"].strip() else ""
+def cli_figures(runs: list[dict], cmd: list[str], true_f: list[float], load: str) -> dict:
+    """Median wall time and mode counts of ``automodal identify`` runs (child processes)."""
+    counts = []
+    for r in runs:
+        phys, rows = physical_frequencies(r["stdout"])
+        counts.append((len(phys), rows, *match_modes(phys, true_f)))
+    n_phys, rows, matched, extra = counts[0]
+    summary = runs[0]["stdout"].strip().splitlines()[-1] if runs[0]["stdout"].strip() else ""
     return {
-        "cmd": cmd, "wall": res["wall"], "walls": res["walls"], "peak_mb": res["peak_mb"],
-        "n_physical": len(phys), "n_rows": rows, "matched": matched, "extra": extra,
-        "n_true": len(true_f), "summary": summary, "load": load_before,
+        "cmd": cmd, "wall": median([r["wall"] for r in runs]),
+        "walls": [r["wall"] for r in runs], "peak_mb": max(r["peak_mb"] for r in runs),
+        "n_physical": n_phys, "n_rows": rows, "matched": matched, "extra": extra,
+        "same_counts": len(set(counts)) == 1,
+        "n_true": len(true_f), "summary": summary, "load": load,
     }
+
+
+def peer_figures(runs: list[dict], cmd: list[str], true_f: list[float], error: str | None,
+                 load: str) -> dict:
+    """Median wall time, the picks and their counts of the sdypy-EMA runs."""
+    if not runs:
+        return {"cmd": cmd, "error": error, "load": load}
+    infos = [json.loads(r["stdout"].strip().splitlines()[-1]) for r in runs]
+    info = infos[0]
+    nat, xi, keys = info["nat_freq"], info["nat_xi"], [tuple(k) for k in info["pole_ind"]]
+    # one entry per distinct pole: a pole picked for two guesses is one mode
+    distinct = {}
+    for f, k in zip(nat, keys):
+        distinct.setdefault(k, f)
+    picked = list(distinct.values())
+    matched, extra = match_modes(picked, true_f)
+    aim = [abs(f - t) / t for f, t in zip(nat, true_f)]  # pick i was aimed at true mode i
+    unmatched = [f for f in picked if all(abs(f - t) > MATCH_TOL * t for t in true_f)]
+    return {
+        "cmd": cmd, "error": error, "load": load, "info": info,
+        "wall": median([r["wall"] for r in runs]), "walls": [r["wall"] for r in runs],
+        "peak_mb": max(r["peak_mb"] for r in runs),
+        "import_s": median([i["import_s"] for i in infos]),
+        "poles_s": median([i["poles_s"] for i in infos]),
+        "select_s": median([i["select_s"] for i in infos]),
+        "compute_s": median([i["compute_s"] for i in infos]),
+        "same_picks": all(i["nat_freq"] == nat for i in infos),
+        "n_picks": len(nat), "n_distinct": len(picked), "matched": matched, "extra": extra,
+        "n_on_target": sum(e <= MATCH_TOL for e in aim), "max_aim_err": max(aim),
+        "far_from_any": unmatched, "nat_freq": nat, "nat_xi": xi,
+    }
+
+
+def bench_case(key: str, path: Path, true_f: list[float], repeat: int,
+               npz: Path | None) -> tuple[dict, dict | None]:
+    """``repeat`` rounds of ``automodal identify FILE``, each followed by the sdypy-EMA child
+    on the same case when ``npz`` is given (interleaved); both as child processes."""
+    am_cmd = automodal_cmd() + ["identify", str(path)]
+    peer_cmd = None
+    if npz is not None:
+        peer_cmd = [sys.executable, str(Path(__file__).resolve()), "--sdypy-child", str(npz)]
+    load = load_average()
+    am_runs, peer_runs, peer_error = [], [], None
+    for i in range(repeat):
+        am_runs.append(run_child(am_cmd))
+        line = f"    round {i + 1}: automodal {am_runs[-1]['wall']:.2f} s"
+        if peer_cmd is not None and peer_error is None:
+            try:
+                peer_runs.append(run_child(peer_cmd))
+                line += f", sdypy-EMA {peer_runs[-1]['wall']:.2f} s"
+            except RuntimeError as exc:  # e.g. not installed: automodal's runs go on
+                peer_error = str(exc).strip().splitlines()[-1]
+                print(f"    sdypy-EMA failed (pip install -e '.[bench]'?): {exc}",
+                      file=sys.stderr)
+        print(line, flush=True)
+    cli = cli_figures(am_runs, am_cmd, true_f, load)
+    peer = None if peer_cmd is None else peer_figures(peer_runs, peer_cmd, true_f,
+                                                      peer_error, load)
+    return cli, peer
 
 
 def bench_replicates(path: Path, repeat: int) -> dict:
@@ -370,19 +457,24 @@ def bench_replicates(path: Path, repeat: int) -> dict:
     }
 
 
-def write_peer_input(path: Path, true_f: list[float], workdir: Path) -> Path:
-    """The FRFs of ``path`` as sdypy-EMA wants them (locations x lines), in a ``.npz``."""
+def write_peer_input(key: str, path: Path, true_f: list[float], workdir: Path) -> Path:
+    """The FRFs of ``path`` as sdypy-EMA's ``Model`` takes them, in a ``.npz``: a 2-D array,
+    one row ("location") per output-input pair (row ``o * n_inputs + i``), one column per
+    line above 0 Hz; with the guesses and this case's settings."""
     import numpy as np
 
     from automodal.io.frf_file import read_frf
 
     data = read_frf(str(path))
     keep = data.frequency > 0
-    frf = data.frf[keep][:, :, 0].T  # single input: (outputs, lines)
+    H = data.frf[keep]  # (lines, outputs, inputs)
+    frf = H.reshape(H.shape[0], -1).T  # (outputs * inputs, lines)
     approx = np.array([float(f"{f:.3g}") for f in true_f])
     npz = workdir / f"{path.stem}_sdypy.npz"
     np.savez(npz, frf=frf, freq=data.frequency[keep], approx=approx,
-             quantity=np.array(data.quantity))
+             quantity=np.array(data.quantity),
+             pol_order_high=np.array(SDYPY[key]["pol_order_high"]),
+             f_window=np.array(SDYPY[key]["f_window"]))
     return npz
 
 
@@ -397,34 +489,26 @@ def sdypy_child(npz: str) -> None:
     t_import = time.perf_counter() - t0
     d = np.load(npz)
     frf, freq, approx = d["frf"], d["freq"], d["approx"]
+    order, f_window = int(d["pol_order_high"]), float(d["f_window"])
     form = {"displacement": "receptance", "velocity": "mobility",
             "acceleration": "accelerance"}[str(d["quantity"])]
     t1 = time.perf_counter()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         model = EMA.Model(frf=frf, freq=freq, lower=float(freq[0]), upper=float(freq[-1]),
-                          pol_order_high=SDYPY_POL_ORDER_HIGH, frf_form=form)
+                          pol_order_high=order, frf_form=form)
         model.get_poles(method="lscf", show_progress=False)
         t2 = time.perf_counter()
-        model.select_closest_poles(list(approx), f_window=SDYPY_F_WINDOW_HZ)
+        model.select_closest_poles(list(approx), f_window=f_window)
     t3 = time.perf_counter()
     print(json.dumps({
         "import_s": t_import, "poles_s": t2 - t1, "select_s": t3 - t2, "compute_s": t3 - t1,
         "nat_freq": [float(x) for x in model.nat_freq],
         "nat_xi": [float(x) for x in model.nat_xi],
+        "pole_ind": [[int(a), int(b)] for a, b in model.pole_ind],
+        "shape": list(frf.shape), "pol_order_high": order, "f_window": f_window,
         "version": getattr(EMA, "__version__", "?"),
     }))
-
-
-def bench_peer(npz: Path, true_f: list[float], repeat: int) -> dict:
-    cmd = [sys.executable, str(Path(__file__).resolve()), "--sdypy-child", str(npz)]
-    res = repeat_child(cmd, repeat)
-    info = json.loads(res["stdout"].strip().splitlines()[-1])
-    nat = info["nat_freq"]
-    err = max(abs(f - t) / t for f, t in zip(nat, true_f)) if nat else float("nan")
-    matched, extra = match_modes(nat, true_f)
-    return {"cmd": cmd, "wall": res["wall"], "walls": res["walls"], "peak_mb": res["peak_mb"],
-            "info": info, "max_rel_err": err, "matched": matched, "extra": extra}
 
 
 # ---------------------------------------------------------------------------- report
@@ -435,13 +519,117 @@ def one_fit(r: dict) -> float:
     return min(r["t_one"], r["t_one_1thread"])
 
 
-def render(meta: dict, cli: dict, ratios: dict, peer: dict | None) -> str:
+def goal_met(am: dict, pr: dict) -> str:
+    """Issue 13's goal: wall time ratio <= 0.8, at least as many true modes, no more false."""
+    checks = [am["wall"] / pr["wall"] <= 0.8, am["matched"] >= pr["matched"],
+              am["extra"] <= pr["extra"]]
+    names = ["time", "true modes", "false modes"]
+    missed = [n for n, ok in zip(names, checks) if not ok]
+    return "yes" if not missed else "no (" + ", ".join(missed) + ")"
+
+
+def render_peers(meta: dict, cli: dict, ratios: dict, peers: dict) -> list[str]:
+    """The peer section: automodal against sdypy-EMA, case by case."""
+    keys = list(peers)
+    out = [f"## Peer: sdypy-EMA LSCF, interleaved with automodal (case"
+           f"{'s' if len(keys) > 1 else ''} {', '.join(keys)})", ""]
+    version = next((pr["info"]["version"] for pr in peers.values() if "info" in pr), "?")
+    out += [f"sdypy-EMA {version}: `EMA.Model(frf, freq, lower=f[0], upper=f[-1],"
+            " pol_order_high, frf_form)`, `get_poles('lscf')`,"
+            " `select_closest_poles(approx, f_window)`, in a fresh interpreter, FRF arrays"
+            " read from a .npz. `EMA.Model` takes a 2-D FRF array (locations x lines) only:"
+            " every output-input pair is one row (case b: 40 outputs x 3 inputs = 120 rows)."
+            " **sdypy-EMA cannot pick poles by itself**: a person picks them on a stability"
+            " chart; here it is given the true natural frequencies rounded to 3 significant"
+            " digits, an f_window chosen for these tests (its default of 50 Hz picked wrong"
+            " poles on case a) and a polynomial order large enough for the case's modes."
+            " automodal gets no help (default settings, 100 bootstrap replicates).", "",
+            f"Each round runs automodal, then sdypy-EMA, on the same case (child processes,"
+            f" interpreter start included); rounds: {meta['repeat']}; medians. True modes"
+            f" found = one-to-one matches within {MATCH_TOL:.0%} of a true natural frequency;"
+            " false = automodal's physical rows, or sdypy-EMA's distinct picked poles, left"
+            " unmatched.", ""]
+    out += ["| case | automodal median wall s | sdypy-EMA median wall s |"
+            " **ratio automodal / sdypy-EMA** | true modes found: automodal / sdypy-EMA |"
+            " false modes: automodal / sdypy-EMA | goal met (ratio <= 0.8, found >=,"
+            " false <=) |",
+            "|---|---:|---:|---:|---:|---:|---|"]
+    for key, pr in peers.items():
+        am = cli.get(key)
+        n_true = len(meta["true"][key])
+        if "info" not in pr:
+            out.append(f"| {CASES[key]['label']} | {am['wall']:.2f} | failed | | "
+                       f"{am['matched']} / - (of {n_true}) | {am['extra']} / - | |")
+            continue
+        out.append(
+            f"| {CASES[key]['label']} | {am['wall']:.2f} | {pr['wall']:.2f} |"
+            f" **{am['wall'] / pr['wall']:.2f}** |"
+            f" {am['matched']} / {pr['matched']} (of {n_true}) |"
+            f" {am['extra']} / {pr['extra']} | {goal_met(am, pr)} |"
+        )
+    out += ["", "### Details", ""]
+    out += ["| case | tool | all runs, wall s | peak MB | import s (median) |"
+            " compute s (median) | setup |",
+            "|---|---|---|---:|---:|---|---|"]
+    for key, pr in peers.items():
+        am, ar = cli.get(key), ratios.get(key)
+        if "info" in pr:
+            info = pr["info"]
+            out.append(
+                f"| {key} | sdypy-EMA | {', '.join(f'{w:.2f}' for w in pr['walls'])} |"
+                f" {pr['peak_mb']:.0f} | {pr['import_s']:.2f} | {pr['compute_s']:.2f}"
+                f" (poles {pr['poles_s']:.2f}, selection {pr['select_s']:.2f}) |"
+                f" FRF {info['shape'][0]} rows x {info['shape'][1]} lines,"
+                f" pol_order_high={info['pol_order_high']}, f_window={info['f_window']:g} |"
+            )
+        else:
+            error = str(pr["error"]).replace("|", "/")
+            out.append(f"| {key} | sdypy-EMA | failed: {error} | | | | |")
+        out.append(
+            f"| {key} | automodal | {', '.join(f'{w:.2f}' for w in am['walls'])} |"
+            f" {am['peak_mb']:.0f} | | "
+            + (f"{ar['t_pipeline']:.2f} (`pipeline.identify`, in process, one call)" if ar
+               else "") + " | default settings |"
+        )
+    out.append("")
+    for key, pr in peers.items():
+        if "info" not in pr:
+            continue
+        ar = ratios.get(key)
+        line = f"* {key}: "
+        if ar:
+            line += (f"compute only (arrays in memory): {ar['t_pipeline']:.2f} s /"
+                     f" {pr['compute_s']:.2f} s = {ar['t_pipeline'] / pr['compute_s']:.2f};")
+        line += (f" sdypy-EMA: {pr['n_picks']} guesses -> {pr['n_distinct']} distinct poles"
+                 f" ({pr['n_picks'] - pr['n_distinct']} picked twice or more);"
+                 f" {pr['n_on_target']} picks within {MATCH_TOL:.0%} of the true mode they were"
+                 f" aimed at (largest relative error {pr['max_aim_err']:.1e});"
+                 f" picks within {MATCH_TOL:.0%} of no true mode:"
+                 f" {len(pr['far_from_any'])}")
+        if not pr["same_picks"]:
+            line += "; the picks differed between runs (the first run's are counted)"
+        out.append(line + ".")
+    out.append("")
+    for key, pr in peers.items():
+        if "info" not in pr:
+            continue
+        picks = zip(pr["nat_freq"], pr["nat_xi"])
+        out += [f"sdypy-EMA's picks, case {key} (Hz, damping %):"
+                f" {', '.join(f'{f:.4f} ({100 * x:.2f})' for f, x in picks)}.", ""]
+    out += ["Commands:", "", "```sh"]
+    out += [" ".join(pr["cmd"]) for pr in peers.values()]
+    out += ["```", ""]
+    return out
+
+
+def render(meta: dict, cli: dict, ratios: dict, peers: dict) -> str:
     out = ["# automodal end-to-end benchmark", ""]
     out += [f"* date: {meta['date']}", f"* machine: {meta['machine']}; nproc {meta['nproc']}",
             f"* Python {meta['python']}; {meta['blas']}",
             f"* automodal: git {meta['git']}",
-            f"* repeats: {meta['repeat']} (minimum wall time; peak RSS: largest of the runs,"
-            f" {meta['peak_method']})",
+            f"* repeats: {meta['repeat']} (child processes: median wall time, automodal and"
+            f" sdypy-EMA interleaved round by round; in-process timings: minimum; peak RSS:"
+            f" largest of the runs, {meta['peak_method']})",
             f"* load average (1, 5, 15 min) at start: {meta['load_start']};"
             f" at end: {meta.get('load_end', 'n/a')}", ""]
     if meta["simulate"]:
@@ -450,7 +638,7 @@ def render(meta: dict, cli: dict, ratios: dict, peer: dict | None) -> str:
         out += ["```", ""]
     if cli:
         out += ["## `automodal identify FILE` (child process, interpreter start included)", ""]
-        out += ["| case | lines | outputs | inputs | wall s | peak MB | physical modes found"
+        out += ["| case | lines | outputs | inputs | median wall s | peak MB | physical modes found"
                 " / true modes | physical rows not matching a true mode | all runs, s |",
                 "|---|---:|---:|---:|---:|---:|---:|---:|---|"]
         for key, r in cli.items():
@@ -461,6 +649,10 @@ def render(meta: dict, cli: dict, ratios: dict, peer: dict | None) -> str:
                 f" {r['matched']} / {r['n_true']} | {r['extra']} |"
                 f" {', '.join(f'{w:.2f}' for w in r['walls'])} |"
             )
+        varied = [k for k, r in cli.items() if not r["same_counts"]]
+        if varied:
+            out += ["", f"Mode counts differed between runs in case(s) {', '.join(varied)};"
+                    " the table gives the first run's."]
         out += ["", "Commands (default settings: 100 replicates, seed 0, all cores):", "", "```sh"]
         out += [" ".join(r["cmd"]) for r in cli.values()]
         out += ["```", "", "Summary lines:", ""]
@@ -525,40 +717,8 @@ def render(meta: dict, cli: dict, ratios: dict, peer: dict | None) -> str:
                 " least squares), one thread: the single identification that target was"
                 " set against, before the Gram path and the normal-equation B/D made one"
                 " fit several times cheaper.", ""]
-    if peer:
-        info = peer["info"]
-        am = cli.get(PEER_CASE)
-        out += ["## Peer: sdypy-EMA LSCF on case a", ""]
-        out += [f"sdypy-EMA {info['version']}: `EMA.Model(frf, freq, lower=f[0], upper=f[-1],"
-                f" pol_order_high={SDYPY_POL_ORDER_HIGH}, frf_form=...)`, `get_poles('lscf')`,"
-                f" `select_closest_poles(approx, f_window={SDYPY_F_WINDOW_HZ:g})`, in a fresh"
-                " interpreter, FRF arrays read from a .npz. **sdypy-EMA cannot pick poles by"
-                " itself**: a person picks them on a stability chart; here it is given the"
-                " true natural frequencies rounded to 3 significant digits, and an f_window"
-                " chosen for this test (its default of 50 Hz picked wrong poles here).", ""]
-        out += ["| | wall s (child, interpreter start included) | peak MB | import s |"
-                " compute s (arrays to poles selected) | modes found / true |",
-                "|---|---:|---:|---:|---:|---:|"]
-        out.append(f"| sdypy-EMA | {peer['wall']:.2f} | {peer['peak_mb']:.0f} |"
-                   f" {info['import_s']:.2f} | {info['compute_s']:.2f}"
-                   f" (poles {info['poles_s']:.2f}, selection {info['select_s']:.2f}) |"
-                   f" {peer['matched']} / {len(meta['true'][PEER_CASE])} (given) |")
-        ar = ratios.get(PEER_CASE)
-        if am:
-            out.append(f"| automodal | {am['wall']:.2f} | {am['peak_mb']:.0f} | | "
-                       + (f"{ar['t_pipeline']:.2f} (`pipeline.identify`, in process)" if ar
-                          else "") + f" | {am['matched']} / {am['n_true']} (no help) |")
-            out += ["", f"**Ratio automodal / sdypy-EMA, wall time with interpreter start:"
-                    f" {am['wall']:.2f} s / {peer['wall']:.2f} s = "
-                    f"{am['wall'] / peer['wall']:.2f}**"]
-            if ar:
-                out[-1] += (f"; compute only (arrays in memory, one call each):"
-                            f" {ar['t_pipeline']:.2f} s / {info['compute_s']:.2f} s ="
-                            f" {ar['t_pipeline'] / info['compute_s']:.2f}")
-        out += ["", f"sdypy-EMA frequencies: {', '.join(f'{f:.4f}' for f in info['nat_freq'])}"
-                f" Hz (largest relative error {peer['max_rel_err']:.1e}); damping"
-                f" {', '.join(f'{100 * x:.3f}' for x in info['nat_xi'])} %.", "",
-                "Command: `" + " ".join(peer["cmd"]) + "`", ""]
+    if peers:
+        out += render_peers(meta, cli, ratios, peers)
     return "\n".join(out)
 
 
@@ -581,7 +741,7 @@ def main(argv: list[str] | None = None) -> int:
         "git": git_state(), "repeat": args.repeat, "load_start": load_average(),
         "simulate": [], "dims": {}, "true": {}, "peak_method": peak_method(),
     }
-    cli, ratios, peer = {}, {}, None
+    cli, ratios, peers = {}, {}, {}
     try:
         paths = {}
         for key in args.cases:
@@ -593,21 +753,23 @@ def main(argv: list[str] | None = None) -> int:
 
             d = read_frf(str(path))
             meta["dims"][key] = d.frf.shape
-        for key in args.cases:
-            print(f"[{time.strftime('%H:%M:%S')}] case {key}: automodal identify", flush=True)
-            cli[key] = bench_cli(key, paths[key], meta["true"][key], args.repeat)
-            r = cli[key]
-            print(f"    wall {r['wall']:.2f} s, peak {r['peak_mb']:.0f} MB,"
-                  f" {r['matched']}/{r['n_true']} found, {r['extra']} extra", flush=True)
         # children first: nothing of this process's later growth can reach them
-        if PEER_CASE in args.cases:
-            print(f"[{time.strftime('%H:%M:%S')}] case {PEER_CASE}: sdypy-EMA", flush=True)
-            try:
-                npz = write_peer_input(paths[PEER_CASE], meta["true"][PEER_CASE], workdir)
-                peer = bench_peer(npz, meta["true"][PEER_CASE], args.repeat)
-            except RuntimeError as exc:
-                print(f"    sdypy-EMA failed (pip install -e '.[bench]'?): {exc}",
-                      file=sys.stderr)
+        for key in args.cases:
+            npz = None
+            if key in PEER_CASES:
+                npz = write_peer_input(key, paths[key], meta["true"][key], workdir)
+            who = "automodal identify" + (" and sdypy-EMA, interleaved" if npz else "")
+            print(f"[{time.strftime('%H:%M:%S')}] case {key}: {who}", flush=True)
+            cli[key], peer = bench_case(key, paths[key], meta["true"][key], args.repeat, npz)
+            r = cli[key]
+            print(f"    automodal: median {r['wall']:.2f} s, peak {r['peak_mb']:.0f} MB,"
+                  f" {r['matched']}/{r['n_true']} found, {r['extra']} extra", flush=True)
+            if peer is not None:
+                peers[key] = peer
+                if "info" in peer:
+                    print(f"    sdypy-EMA: median {peer['wall']:.2f} s,"
+                          f" {peer['matched']}/{r['n_true']} found, {peer['extra']} extra;"
+                          f" ratio {r['wall'] / peer['wall']:.2f}", flush=True)
         for key in [k for k in args.cases if k in RATIO_CASES]:
             print(f"[{time.strftime('%H:%M:%S')}] case {key}: replicates vs one identification",
                   flush=True)
@@ -622,7 +784,7 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         if tmp is not None:
             tmp.cleanup()
-    text = render(meta, cli, ratios, peer)
+    text = render(meta, cli, ratios, peers)
     print()
     print(text)
     if args.out:
