@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -216,6 +216,13 @@ def _identify(data: FRFData, s: Settings, progress: Callable[[int], None] | None
     p = prepare(data, s, warnings)
     choice = order.select_orders(p.z, p.Hs, p.line_weights, s.max_order, p.data.source,
                                  variance=p.variance)
+    if p.variance is not None and choice.rule == "floor":
+        # the whitened residual never fell below the smallest model's: the noise weighting
+        # gives the order test nothing to stand on, so the envelope path runs instead
+        warnings.append("no scanned model fitted the noise-whitened data better than the"
+                        " smallest one: envelope weighting and the misfit-floor order used")
+        p = prepare(data, replace(s, weighting="envelope"), [])
+        choice = order.select_orders(p.z, p.Hs, p.line_weights, s.max_order, p.data.source)
     ref = reference.build_reference(
         p.z, p.Hs, p.scales, p.line_weights, choice.reference, p.T,
         (float(p.omega[0]), float(p.omega[-1])), s.zeta_max, s.coalescence, p.window_decay,

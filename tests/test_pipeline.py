@@ -161,3 +161,11 @@ def test_record_bootstrap_resamples_the_records():
     assert [m.frequency_hz for m in same.modes] == [m.frequency_hz for m in res.modes]
     lines = identify(data, Settings(seed=1, n_bootstrap=30, jobs=1, resample="lines"))
     assert any("frequency lines" in w for w in lines.warnings)
+
+
+def test_report_says_which_weighting_ran():
+    case = cases.chain6_1pct()
+    result = identify(case.data, Settings(seed=0, n_bootstrap=10))
+    assert result.orders["weighting"] == "noise"
+    result = identify(case.data, Settings(seed=0, n_bootstrap=10, weighting="envelope"))
+    assert result.orders["weighting"] == "envelope"

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from automodal.core import simulate as sim
-from automodal.core.refine import refine_poles, separable_weights
+from automodal.core.refine import duplicate_poles, refine_poles, separable_weights
 
 
 def _chain(zeta=0.02, n_lines=800):
@@ -60,6 +60,59 @@ def test_a_start_far_from_any_resonance_is_not_refined():
     assert not fit.refined[0]
     assert fit.poles[0] == lonely[0]
     assert np.isnan(fit.covariance[0]).all()
+
+
+def test_a_start_biased_beyond_three_half_bandwidths_reaches_its_mode():
+    """A low-order subspace estimate can start a pole several half-bandwidths off: the fit
+    may move it up to half-way to its neighbour, and finds the mode."""
+    omega, H, poles, _ = _chain()
+    start = poles.copy()
+    start[1] = poles[1] + 5.0j * abs(poles[1].real)  # 5 half-bandwidths high
+    fit = refine_poles(omega, H, np.full(H.shape, 1e-8), start, np.zeros(0))
+    assert fit.refined.all()
+    np.testing.assert_allclose(fit.poles, poles, rtol=1e-9)
+
+
+def _noisy_chain(seed=0, level=0.02):
+    omega, H, poles, modes = _chain()
+    rms = np.sqrt(np.mean(np.abs(H) ** 2, axis=0, keepdims=True))
+    rng = np.random.default_rng(seed)
+    H = H + level * rms * sim.complex_gaussian(H.shape, 1.0, rng)
+    variance = np.broadcast_to((level * rms) ** 2, H.shape)
+    return omega, H, variance, poles
+
+
+def test_a_resonance_split_in_two_poles_keeps_only_one():
+    """Two poles on one mode (an over-sized model's split): the weaker is a duplicate."""
+    omega, H, variance, poles = _noisy_chain()
+    twin = poles[1] + 0.5j * abs(poles[1].real)
+    fit = refine_poles(omega, H, variance, np.array([poles[1], twin]),
+                       np.concatenate([poles[[0, 2, 3]]]))
+    got = np.where(fit.refined, fit.poles, np.array([poles[1], twin]))
+    dup = duplicate_poles(omega, H, variance, got, poles[[0, 2, 3]])
+    assert dup.sum() == 1
+
+
+def test_distinct_modes_are_not_duplicates():
+    omega, H, variance, poles = _noisy_chain()
+    assert not duplicate_poles(omega, H, variance, poles, np.zeros(0)).any()
+
+
+def test_two_close_modes_seen_by_two_inputs_are_both_kept():
+    """Modes one half-bandwidth apart with different shapes are two modes."""
+    rng = np.random.default_rng(3)
+    w = 2 * np.pi * np.array([10.0, 10.05])
+    lam = w * (-0.005 + 1j * np.sqrt(1 - 0.005**2))
+    omega = 2 * np.pi * np.linspace(8, 12, 800)
+    s = 1j * omega
+    phi = np.array([[1.0, 0.3, -0.5], [0.2, 1.0, 0.8]])  # mode x output
+    L = np.array([[1.0, 0.1], [0.1, 1.0]])  # mode x input
+    H = sum(np.einsum("i,j,f->fij", phi[r], L[r], 1 / (s - lam[r]) + 1 / (s - lam[r].conj()))
+            for r in range(2))
+    level = 0.01 * np.sqrt(np.mean(np.abs(H) ** 2))
+    H = H + level * sim.complex_gaussian(H.shape, 1.0, rng)
+    variance = np.full(H.shape, level**2)
+    assert not duplicate_poles(omega, H, variance, lam, np.zeros(0)).any()
 
 
 @pytest.mark.parametrize("kind", ["additive", "proportional"])

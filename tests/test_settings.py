@@ -127,3 +127,18 @@ def test_cli_refuses_a_bad_setting_with_exit_2_and_one_line(args):
     assert len(p.stderr.strip().splitlines()) == 1, p.stderr
     assert p.stderr.startswith("automodal: error: ")
     assert args[0].lstrip("-") in p.stderr
+
+
+def test_auto_weighting_is_noise_for_frfs_and_envelope_for_output_only():
+    s = Settings()
+    assert s.weighting == "auto"
+    assert s.weighting_for(operational=False) == "noise"
+    assert s.weighting_for(operational=True) == "envelope"
+    assert Settings(weighting="envelope").weighting_for(operational=False) == "envelope"
+    assert Settings(weighting="noise").weighting_for(operational=True) == "noise"
+
+
+def test_noise_resampling_is_refused_with_envelope_weighting():
+    with pytest.raises(SettingsError, match="resample"):
+        Settings(resample="noise", weighting="envelope")
+    Settings(resample="noise")  # auto weighting: allowed
