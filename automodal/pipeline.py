@@ -110,6 +110,18 @@ class Prepared:
     # when the identification is weighted by it (weighting "noise")
 
     @property
+    def weighting(self) -> str:
+        """The weighting in force: ``"noise"`` (whitened by the noise model) or
+        ``"envelope"``."""
+        return "envelope" if self.variance is None else "noise"
+
+    def enveloped(self) -> Prepared:
+        """The same preparation with envelope line weights and RMS channel scales (the
+        noise model kept for the intervals)."""
+        scales, Hs, weights, _ = _weighted(self.H, None)
+        return replace(self, scales=scales, Hs=Hs, line_weights=weights, variance=None)
+
+    @property
     def noise_variance(self) -> np.ndarray | None:
         """The noise variance oriented like ``H`` (data units), or ``None``."""
         return None if self.noise is None else _oriented(self.noise.variance, self.reciprocal)
@@ -138,22 +150,30 @@ def prepare(data: FRFData, s: Settings, warnings: list[str]) -> Prepared:
     H, reciprocal = apply_reciprocity(H, warnings)
     omega = 2.0 * np.pi * freq
     T = default_scale(omega[0], omega[-1])
-    variance = None
     weighting = s.weighting_for(data.attributes.get("analysis") == "operational")
-    if noise is None or weighting != "noise":
-        scales = subspace.channel_scales(H)
-        Hs = H / scales[None, :, None]
-        weights = subspace.envelope_weights(Hs)
-    else:
-        variance = _oriented(noise.variance, reciprocal)
-        weights, scales = whitening.whitening(variance)
-        Hs = H / scales[None, :, None]
-        variance = variance / (scales**2)[None, :, None]
+    scales, Hs, weights, variance = _weighted(
+        H, None if noise is None or weighting != "noise"
+        else _oriented(noise.variance, reciprocal))
     return Prepared(
         data=data, frequency=freq, H=H, band_hz=band, reciprocal=reciprocal, omega=omega, T=T,
         z=to_unit_circle(omega, T), scales=scales, Hs=Hs, line_weights=weights,
         noise=noise, variance=variance,
     )
+
+
+def _weighted(
+    H: np.ndarray, variance: np.ndarray | None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
+    """Channel scales, scaled FRF, line weights and the channel-scaled variance: whitened by
+    the noise ``variance`` (oriented like ``H``), or envelope weights and RMS scales when
+    it is ``None``."""
+    if variance is None:
+        scales = subspace.channel_scales(H)
+        Hs = H / scales[None, :, None]
+        return scales, Hs, subspace.envelope_weights(Hs), None
+    weights, scales = whitening.whitening(variance)
+    return (scales, H / scales[None, :, None], weights,
+            variance / (scales**2)[None, :, None])
 
 
 def _oriented(variance: np.ndarray, reciprocal: bool) -> np.ndarray:
@@ -221,7 +241,7 @@ def _identify(data: FRFData, s: Settings, progress: Callable[[int], None] | None
         # gives the order test nothing to stand on, so the envelope path runs instead
         warnings.append("no scanned model fitted the noise-whitened data better than the"
                         " smallest one: envelope weighting and the misfit-floor order used")
-        p = prepare(data, replace(s, weighting="envelope"), [])
+        p = p.enveloped()
         choice = order.select_orders(p.z, p.Hs, p.line_weights, s.max_order, p.data.source)
     ref = reference.build_reference(
         p.z, p.Hs, p.scales, p.line_weights, choice.reference, p.T,
@@ -255,8 +275,7 @@ def _identify(data: FRFData, s: Settings, progress: Callable[[int], None] | None
         warnings=warnings,
         poles=PoleTable.from_poles(reps.poles, clusters.labels, reps.replicate),
         band_hz=(float(p.band_hz[0]), float(p.band_hz[1])),
-        orders=_orders_info(choice, ref, reps.n_qr, p.T,
-                            "noise" if p.variance is not None else "envelope"),
+        orders=_orders_info(choice, ref, reps.n_qr, p.T, p.weighting),
         runtime_s=time.perf_counter() - t0,
         reference_model=ref.model,
         reciprocity=p.reciprocal,

@@ -359,6 +359,18 @@ def _small_sample(clusters: float) -> float:
     return g / (g - 1.0) * (float(stdtrit(g - 1.0, 0.975)) / 1.959963984540054) ** 2
 
 
+def _whitened(
+    omega: np.ndarray, H: np.ndarray, variance: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``s = i omega``, the square root of the line weights and the whitened data
+    ``(N, E)`` of the separable noise model."""
+    N = H.shape[0]
+    line_var, entry_var = separable_weights(np.asarray(variance, float).reshape(N, -1))
+    sw = 1.0 / np.sqrt(line_var)
+    Y = sw[:, None] * np.asarray(H).reshape(N, -1) / np.sqrt(entry_var)[None, :]
+    return 1j * np.asarray(omega, dtype=float), sw, Y
+
+
 def _reach(start: np.ndarray, others: np.ndarray) -> np.ndarray:
     """How far each starting pole may move: :data:`MAX_MOVE` half-bandwidths, or up to
     :data:`TERRITORY` of the distance to the nearest other pole (the other starts and the
@@ -367,9 +379,8 @@ def _reach(start: np.ndarray, others: np.ndarray) -> np.ndarray:
     pool = np.concatenate([start, others, np.conj(others)])
     d = np.abs(start[:, None] - pool[None, :])
     d[np.arange(start.size), np.arange(start.size)] = np.inf
-    gap = d.min(axis=1) if pool.size > 1 else np.full(start.size, np.inf)
-    # a lone pole (no neighbour at all) keeps the fixed limit
-    gap = np.where(np.isfinite(gap), gap, 0.0)
+    gap = d.min(axis=1)
+    gap[~np.isfinite(gap)] = 0.0  # a lone pole (no neighbour at all): the fixed limit
     return np.maximum(MAX_MOVE * half, TERRITORY * gap)
 
 
@@ -421,19 +432,15 @@ def refine_poles(
     nan_cov = np.full((m, 2, 2), np.nan)
     if m == 0 or N < 2 * (2 * m + fixed.size + 1):
         return PoleRefinement(free0.copy(), nan_cov, np.full(m, np.nan), np.zeros(m, bool), 0)
-    line_var, entry_var = separable_weights(np.asarray(variance, float).reshape(N, -1))
-    sw = 1.0 / np.sqrt(line_var)
-    entry_std = np.sqrt(entry_var)
-    Y = sw[:, None] * H.reshape(N, -1) / entry_std[None, :]
-    s = 1j * omega
+    s, sw, Y = _whitened(omega, H, variance)
     ok = np.ones(m, bool)
     poles, it, prob = free0.copy(), 0, None
     for _ in range(3):  # refit with the poles that failed held fixed
         idx = np.flatnonzero(ok)
-        prob = _Problem.make(s, sw, Y, np.concatenate([free0[~ok], fixed]))
+        held = np.concatenate([free0[~ok], fixed])
+        prob = _Problem.make(s, sw, Y, held)
         start = free0[idx]
-
-        reach = _reach(start, np.concatenate([free0[~ok], fixed]))
+        reach = _reach(start, held)
 
         def left(got: np.ndarray, start: np.ndarray = start,
                  reach: np.ndarray = reach) -> np.ndarray:
@@ -503,22 +510,8 @@ def refine_poles(
                           iterations=it)
 
 
-
-def _whitened(
-    omega: np.ndarray, H: np.ndarray, variance: np.ndarray
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``s = i omega``, the square root of the line weights and the whitened data
-    ``(N, E)`` of the separable noise model."""
-    N = H.shape[0]
-    line_var, entry_var = separable_weights(np.asarray(variance, float).reshape(N, -1))
-    sw = 1.0 / np.sqrt(line_var)
-    Y = sw[:, None] * np.asarray(H).reshape(N, -1) / np.sqrt(entry_var)[None, :]
-    return 1j * np.asarray(omega, dtype=float), sw, Y
-
-
 def _wald_and_local(
-    omega: np.ndarray, s: np.ndarray, sw: np.ndarray, Y: np.ndarray,
-    poles: np.ndarray, fixed: np.ndarray,
+    s: np.ndarray, sw: np.ndarray, Y: np.ndarray, poles: np.ndarray, fixed: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Per pole of ``poles``: the whitened cost its residues remove with everything else
     in the model (the Wald statistic ``beta^T V^{-1} beta`` summed over entries), and the
@@ -548,9 +541,10 @@ def _wald_and_local(
     line_dof = row_dof[:N] + row_dof[N:]
     local = np.empty(poles.size)
     for j, lam in enumerate(poles):
-        near = np.abs(omega - lam.imag) <= LOCAL_HALF_BANDWIDTHS * max(abs(lam.real), 1e-12)
+        dist = np.abs(s.imag - lam.imag)
+        near = dist <= LOCAL_HALF_BANDWIDTHS * max(abs(lam.real), 1e-12)
         if near.sum() < MIN_LOCAL_LINES:
-            near = np.argsort(np.abs(omega - lam.imag))[:MIN_LOCAL_LINES]
+            near = np.argsort(dist)[:MIN_LOCAL_LINES]
         local[j] = float(np.sum(line_cost[near]) / max(np.sum(line_dof[near]), 1e-12))
     return wald, np.maximum(local, 1.0)
 
@@ -602,7 +596,7 @@ def duplicate_poles(
     s, sw, Y = _whitened(omega, H, variance)
     if Y.shape[0] < 2 * (2 * m + fixed.size + len(RESIDUAL_POWERS)):
         return dup
-    wald, local = _wald_and_local(omega, s, sw, Y, poles, fixed)
+    wald, local = _wald_and_local(s, sw, Y, poles, fixed)
     threshold = float(chdtri(2 * Y.shape[1] + 2, DUPLICATE_LEVEL))
     for _, a, b in sorted(pairs):
         if dup[a] or dup[b]:
