@@ -316,6 +316,50 @@ def test_csv_round_trip_with_header(tmp_path):
     assert data.attributes["quantity_source"].startswith("not stated")
 
 
+@pytest.mark.parametrize(
+    ("header", "encode"),
+    [
+        ("f,tip_mag,tip_phase_deg", lambda h: (np.abs(h), np.degrees(np.angle(h)))),
+        ("f,Magnitude [m/N],Phase (rad)", lambda h: (np.abs(h), np.angle(h))),
+        ("f,tip dB,tip phase deg", lambda h: (20 * np.log10(np.abs(h)),
+                                             np.degrees(np.angle(h)))),
+    ],
+    ids=["mag-deg", "mag-rad", "db-deg"],
+)
+def test_csv_magnitude_and_phase_columns_are_read_by_their_header(tmp_path, header, encode):
+    """Issue 15, item 1: a (magnitude, phase) table is not read as (real, imaginary)."""
+    h = frf_values(1)
+    a, b = encode(h)
+    path = tmp_path / "m.csv"
+    path.write_text(header + "\n" + "\n".join(
+        f"{float(f)!r},{float(x)!r},{float(y)!r}" for f, x, y in zip(FREQ, a, b)) + "\n")
+    data = read_csv(path)
+    np.testing.assert_allclose(data.frf[:, 0, 0], h, rtol=1e-12)
+    assert "phase" in data.attributes["csv_columns"]
+    assert data.output_names[0] in ("tip", "y1")
+
+
+@pytest.mark.parametrize(
+    ("header", "words"),
+    [
+        ("f,mag,phase", ["phase's unit is not stated", "phase_deg"]),
+        ("f,tip_mag,tip_im", ["not a (real, imaginary), (magnitude, phase)"]),
+        ("f,tip_re,tip_phase_deg", ["not a (real, imaginary)"]),
+    ],
+    ids=["no-unit", "mag-im", "re-phase"],
+)
+def test_csv_header_pairs_that_cannot_be_read_safely_are_refused(tmp_path, header, words):
+    path = tmp_path / "bad.csv"
+    path.write_text(header + "\n1,2,3\n2,2,4\n")
+    refused(read_csv, path, *words)
+
+
+def test_csv_negative_magnitude_is_refused(tmp_path):
+    path = tmp_path / "bad.csv"
+    path.write_text("f,mag,phase_deg\n1,-20,3\n2,-21,4\n")
+    refused(read_csv, path, "negative magnitude", "dB")
+
+
 def test_csv_whitespace_without_header_with_quantity_comment(tmp_path):
     frf = two_frfs()
     path = write_table(tmp_path / "t.txt", frf, sep="\t ", comments="# quantity: velocity")

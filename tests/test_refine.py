@@ -93,6 +93,20 @@ def test_a_resonance_split_in_two_poles_keeps_only_one():
     assert dup.sum() == 1
 
 
+def test_an_expendable_pole_gives_way_whatever_its_strength():
+    """A companion of a physical mode (expendable) is the one dropped from a split pair,
+    and only the pairs with an expendable pole are tested."""
+    omega, H, variance, poles = _noisy_chain()
+    twin = poles[1] + 0.5j * abs(poles[1].real)
+    pair = np.array([poles[1], twin])
+    for which in (0, 1):
+        expendable = np.arange(2) == which
+        dup = duplicate_poles(omega, H, variance, pair, poles[[0, 2, 3]], expendable)
+        np.testing.assert_array_equal(dup, expendable)
+    none = duplicate_poles(omega, H, variance, pair, poles[[0, 2, 3]], np.zeros(2, bool))
+    assert not none.any()
+
+
 def test_distinct_modes_are_not_duplicates():
     omega, H, variance, poles = _noisy_chain()
     assert not duplicate_poles(omega, H, variance, poles, np.zeros(0)).any()

@@ -397,7 +397,7 @@ def refine_poles(
     Parameters
     ----------
     omega : ndarray, shape (N,)
-        Lines (rad/s), positive.
+        Lines (rad/s), positive and increasing.
     H : ndarray, shape (N, ny, nu)
         FRF at those lines (data as measured: any exponential window's effect included).
     variance : ndarray, shape (N, ny, nu)
@@ -408,14 +408,14 @@ def refine_poles(
         Other poles of the model, kept fixed: a pole pair by its pole with ``Im > 0`` (its
         conjugate, if given too, is ignored), a real pole as itself.
     max_iterations : int
-        Gauss-Newton iterations at most.
+        Gauss-Newton iterations at most, per fit.
 
     Returns
     -------
     PoleRefinement
-        A pole that moved more than :data:`MAX_MOVE` half-bandwidths, turned unstable or
-        whose information is singular is not refined (the fit is then repeated with it
-        fixed at its start).
+        A pole that moved further than its reach (:func:`_reach`), turned unstable, whose
+        half-bandwidth changed by more than :data:`MAX_DAMPING_CHANGE` or whose information
+        is singular is not refined (the fit goes on with it fixed at its start).
 
     Notes
     -----
@@ -428,58 +428,91 @@ def refine_poles(
     N = H.shape[0]
     free0 = np.asarray(free, dtype=complex).ravel()
     fixed = np.asarray(fixed, dtype=complex).ravel()
+    fixed = fixed[fixed.imag >= 0]
     m = free0.size
     nan_cov = np.full((m, 2, 2), np.nan)
     if m == 0 or N < 2 * (2 * m + fixed.size + 1):
         return PoleRefinement(free0.copy(), nan_cov, np.full(m, np.nan), np.zeros(m, bool), 0)
     s, sw, Y = _whitened(omega, H, variance)
+    poles, cov, disp, ok, it = _refine_all(s, sw, Y, free0, _reach(free0, fixed), fixed,
+                                           max_iterations)
+    return PoleRefinement(poles=poles, covariance=cov, dispersion=disp, refined=ok,
+                          iterations=it)
+
+
+def _refine_all(
+    s: np.ndarray, sw: np.ndarray, Y: np.ndarray, start: np.ndarray, reach: np.ndarray,
+    fixed: np.ndarray, max_iterations: int,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
+    """The fit of :func:`refine_poles` on whitened data: the poles from ``start``, the
+    poles ``fixed`` and the band's residual terms in the basis. A pole that leaves what a
+    refinement may do is held at its start and the others go on from where they were.
+    Returns the poles, their covariance and dispersion, which were refined, and the
+    iterations of the last fit."""
+    m = start.size
     ok = np.ones(m, bool)
-    poles, it, prob = free0.copy(), 0, None
-    for _ in range(3):  # refit with the poles that failed held fixed
+    poles, it, prob = start.copy(), 0, None
+    current = start.copy()
+    for _ in range(m):  # refit with the poles that failed held fixed (one more each time)
         idx = np.flatnonzero(ok)
-        held = np.concatenate([free0[~ok], fixed])
+        held = np.concatenate([start[~ok], fixed])
         prob = _Problem.make(s, sw, Y, held)
-        start = free0[idx]
-        reach = _reach(start, held)
+        first, limit = start[idx], reach[idx]
 
-        def left(got: np.ndarray, start: np.ndarray = start,
-                 reach: np.ndarray = reach) -> np.ndarray:
+        def left(got: np.ndarray, first: np.ndarray = first,
+                 limit: np.ndarray = limit) -> np.ndarray:
             # out of reach or unstable: no later step brings a pole back from there
-            return (np.abs(got - start) > reach) | (got.real >= 0) | (got.imag <= 0)
+            return (np.abs(got - first) > limit) | (got.real >= 0) | (got.imag <= 0)
 
-        def strayed(got: np.ndarray, start: np.ndarray = start) -> np.ndarray:
+        def strayed(got: np.ndarray, first: np.ndarray = first) -> np.ndarray:
             # the half-bandwidth is judged at the end only: from a start off its resonance
             # a pole first widens to reach it (4.8 times, 5 half-bandwidths off), then narrows
-            ratio = np.abs(got.real) / np.maximum(np.abs(start.real), 1e-12)
+            ratio = np.abs(got.real) / np.maximum(np.abs(first.real), 1e-12)
             return (left(got) | (ratio > MAX_DAMPING_CHANGE)
                     | (ratio < 1.0 / MAX_DAMPING_CHANGE))
 
-        got, it = _gauss_newton(prob, start, max_iterations, left)
+        got, it = _gauss_newton(prob, current[idx], max_iterations, left)
         bad = strayed(got)
         ok[idx[bad]] = False
         if not bad.any():
             poles[idx] = got
             break
+        current[idx] = got  # the others go on from where they were
         if not ok.any():
             break
-    else:  # still failing after the last refit: nothing is refined
-        ok[:] = False
+    nan_cov = np.full((m, 2, 2), np.nan)
     idx = np.flatnonzero(ok)
     if idx.size == 0:
-        return PoleRefinement(free0.copy(), nan_cov, np.full(m, np.nan), ok, it)
-    cost, C, R, Qp = _fit(prob, poles[idx])
-    normal, _ = _normal_equations(prob, poles[idx], C, R, Qp)
+        return start.copy(), nan_cov, np.full(m, np.nan), ok, it
+    cov, disp = _covariance(prob, poles[idx])
+    out_cov, out_disp = nan_cov.copy(), np.full(m, np.nan)
+    out_cov[idx], out_disp[idx] = cov, disp
+    bad = ~np.all(np.isfinite(out_cov), axis=(1, 2)) | (out_cov[:, 0, 0] < 0) | (
+        out_cov[:, 1, 1] < 0)
+    bad &= ok
+    ok[bad] = False
+    poles[bad] = start[bad]
+    out_cov[bad] = np.nan
+    return poles, out_cov, out_disp, ok, it
+
+
+def _covariance(prob: _Problem, poles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Covariance ``(m, 2, 2)`` of ``(Re, Im)`` of fitted ``poles`` and their dispersion
+    (see :class:`PoleRefinement`)."""
+    m = poles.size
+    cost, C, R, Qp = _fit(prob, poles)
+    normal, _ = _normal_equations(prob, poles, C, R, Qp)
     try:
         info_inv = np.linalg.inv(normal)
     except np.linalg.LinAlgError:
         info_inv = np.full_like(normal, np.nan)
     # each complex whitened residual has E|e|^2 = 1: real and imaginary parts 1/2 each
     cov_free = 0.5 * np.stack([info_inv[2 * i: 2 * i + 2, 2 * i: 2 * i + 2]
-                               for i in range(idx.size)])
+                               for i in range(m)])
     # leverage of the linear part per stacked row; residuals corrected for it
     leverage = np.clip(np.sum(prob.Qf**2, axis=1) + np.sum(Qp**2, axis=1), 0.0, 1.0 - 1e-9)
     Rc = R / np.sqrt(1.0 - leverage)[:, None]
-    _, PD, Cx = _jacobian_parts(prob, poles[idx], C, Qp)
+    _, PD, Cx = _jacobian_parts(prob, poles, C, Qp)
     # clustered sandwich: the scores of each block of CLUSTER_LINES lines over all their
     # entries (real and imaginary rows together), so errors correlated across the entries
     # of a line (an H1 estimate's shared force noise) or between neighbouring lines (a
@@ -492,22 +525,17 @@ def refine_poles(
     info = _block_sums(PD**2 * np.sum(Cx**2, axis=1)[None, :])
     info = info.reshape(info.shape[0], -1, 4).sum(axis=2)  # per pole, (blocks, m)
     disp = np.full(m, np.nan)
-    cov = nan_cov.copy()
-    for j, i in enumerate(idx):
+    cov = np.empty((m, 2, 2))
+    for j in range(m):
         block = slice(2 * j, 2 * j + 2)
         model = cov_free[j]
         g = float(np.sum(info[:, j]) ** 2 / max(np.sum(info[:, j] ** 2), 1e-300))
         sand = robust[block, block] * _small_sample(g)
         # the larger of the model's and the data's covariance: the sandwich alone is noisy
         # when a sharp resonance spreads its information over a few lines
-        disp[i] = float(np.trace(sand) / np.trace(model)) if np.trace(model) > 0 else np.nan
-        cov[i] = sand if np.isfinite(disp[i]) and disp[i] > 1.0 else model
-        if not np.all(np.isfinite(cov[i])) or cov[i, 0, 0] < 0 or cov[i, 1, 1] < 0:
-            ok[i] = False
-            poles[i] = free0[i]
-            cov[i] = np.nan
-    return PoleRefinement(poles=poles, covariance=cov, dispersion=disp, refined=ok,
-                          iterations=it)
+        disp[j] = float(np.trace(sand) / np.trace(model)) if np.trace(model) > 0 else np.nan
+        cov[j] = sand if np.isfinite(disp[j]) and disp[j] > 1.0 else model
+    return cov, disp
 
 
 def _wald_and_local(
@@ -555,12 +583,14 @@ def duplicate_poles(
     variance: np.ndarray,
     poles: np.ndarray,
     fixed: np.ndarray,
+    expendable: np.ndarray | None = None,
 ) -> np.ndarray:
     """Which of the (refined) ``poles`` the data do not need beside a neighbour.
 
     For each pair of ``poles`` closer than :data:`DUPLICATE_HALF_BANDWIDTHS` half-bandwidths
-    (of the wider pole), closest pairs first, the weaker pole (the smaller Wald statistic of
-    its residues) is dropped and the stronger refitted alone, residues and pole: the
+    (of the wider pole), closest pairs first, the weaker pole (the expendable one of a pair
+    with one, else the smaller Wald statistic of its residues) is dropped and the other
+    refitted alone, residues and pole: the
     whitened cost rises by ``delta``. If the pair were one mode, ``2 delta`` over the local
     dispersion would be chi-square with ``2 E + 2`` degrees of freedom (the weaker pole's
     ``E`` complex residues, tied to real-coefficient pairs, and its two pole parameters);
@@ -575,6 +605,11 @@ def duplicate_poles(
         Poles to judge (``Im > 0``).
     fixed : ndarray, shape (q,)
         The model's other poles.
+    expendable : ndarray of bool, shape (m,), optional
+        Poles that give way to the others when a pair is one mode (say, an over-sized
+        model's companions of the modes called physical), whatever their strength; each
+        is then tested only against its nearest pole (the resonance it would split), and
+        no other pair is tested.
 
     Returns
     -------
@@ -591,6 +626,10 @@ def duplicate_poles(
     sep = np.abs(poles[:, None] - poles[None, :]) / np.maximum(half[:, None], half[None, :])
     pairs = [(sep[a, b], a, b) for a in range(m) for b in range(a + 1, m)
              if sep[a, b] < DUPLICATE_HALF_BANDWIDTHS]
+    if expendable is not None:  # an expendable pole is a split of its nearest resonance
+        nearest = {int(e): min((p for p in pairs if e in p[1:]), default=None)
+                   for e in np.flatnonzero(expendable)}
+        pairs = sorted({p for p in nearest.values() if p is not None})
     if not pairs:
         return dup
     s, sw, Y = _whitened(omega, H, variance)
@@ -598,13 +637,20 @@ def duplicate_poles(
         return dup
     wald, local = _wald_and_local(s, sw, Y, poles, fixed)
     threshold = float(chdtri(2 * Y.shape[1] + 2, DUPLICATE_LEVEL))
+    base = _Problem.make(s, sw, Y, fixed)
+    tested = base.off_fixed(_stack(sw[:, None] * _pair_columns(s, poles)))
     for _, a, b in sorted(pairs):
         if dup[a] or dup[b]:
             continue
-        weak, strong = (a, b) if wald[a] < wald[b] else (b, a)
-        others = np.concatenate([poles[(~dup) & (np.arange(m) != a) & (np.arange(m) != b)],
-                                 fixed])
-        prob = _Problem.make(s, sw, Y, others)
+        if expendable is not None and expendable[a] != expendable[b]:
+            weak, strong = (a, b) if expendable[a] else (b, a)
+        else:
+            weak, strong = (a, b) if wald[a] < wald[b] else (b, a)
+        # the basis of the others: the fixed part once, the other tested poles off it
+        keep = (~dup) & (np.arange(m) != a) & (np.arange(m) != b)
+        Qe = _orthonormal(tested[:, np.repeat(keep, 2)]) if keep.any() else base.Qf[:, :0]
+        prob = _Problem(s=s, sw=sw, Qf=np.hstack([base.Qf, Qe]),
+                        Yf=base.Yf - Qe @ (Qe.T @ base.Yf))
         both = _fit(prob, poles[[a, b]])[0]
         alone, _ = _gauss_newton(prob, poles[[strong]], MAX_ITERATIONS)
         delta = _fit(prob, alone)[0] - both

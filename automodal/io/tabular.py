@@ -10,7 +10,10 @@ CSV layout (:func:`read_csv`)::
 One row per frequency line; the first column is the frequency in Hz, then one (real,
 imaginary) column pair per FRF. Each pair is one output of a single input, so the result has
 ``n_outputs`` = number of pairs and ``n_inputs`` = 1 (a roving-sensor or single-reference
-test). Columns are separated by commas or by whitespace.
+test). Columns are separated by commas or by whitespace. A header may instead name a pair
+(magnitude, phase) or (dB, phase), e.g. ``f, tip_mag, tip_phase_deg``: the phase's unit
+(``deg`` or ``rad``) must be in its name. A pair the header names otherwise (``mag`` beside
+``im``, a phase without a unit) is refused rather than guessed.
 
 NPZ layout (:func:`read_npz`): ``frequency`` (1-D, Hz), ``frf`` (complex, shape
 ``(lines, outputs, inputs)``, or ``(lines, outputs)`` for one input), optional ``quantity``
@@ -35,7 +38,6 @@ from automodal.io.refusal import describe, read_refusing
 __all__ = ["read_csv", "read_npz"]
 
 _QUANTITY_LINE = re.compile(r"^#\s*quantity\s*[:=]\s*(\S+)\s*$", re.IGNORECASE)
-_REAL_SUFFIX = re.compile(r"[\s_.\-]*(re|real)$", re.IGNORECASE)
 _REAL_WRAPPED = re.compile(r"^re(al)?\s*[(\[](.*)[)\]]$", re.IGNORECASE)
 _CSV_LAYOUT = "expected a frequency column, then one real and one imaginary column per FRF"
 _NPZ_LAYOUT = ("expected keys 'frequency' (1-D, Hz) and 'frf' (complex, shape (lines, outputs, "
@@ -55,9 +57,12 @@ def read_csv(path: str | os.PathLike[str]) -> FRFData:
 
     The first column is the frequency in Hz; the others come in (real, imaginary) pairs,
     one pair per FRF. All FRFs belong to one input: the result has one output per column
-    pair and a single input. A first row that is not numeric is a header: the name of each
-    pair's real column, without a ``re``/``real`` suffix or ``Re(...)`` wrapper, becomes the
-    output's name. Blank lines and lines starting with ``#`` are skipped; a comment line
+    pair and a single input. A first row that is not numeric is a header: it says what each
+    pair holds, (real, imaginary) (``_re``/``_im`` or ``Re(...)``/``Im(...)``, or names that
+    say neither), (magnitude, phase) or (dB, phase) (``mag``, ``dB``, ``phase_deg``,
+    ``phase_rad``; a phase must state its unit), and the name of each pair's first column,
+    without those words, becomes the output's name. ``attributes["csv_columns"]`` says how
+    the columns were read. Blank lines and lines starting with ``#`` are skipped; a comment line
     ``# quantity: acceleration`` (or ``velocity``, ``displacement``) states the response
     quantity, which is otherwise ``"displacement"``. ``attributes["quantity_source"]`` says
     which.
@@ -77,9 +82,11 @@ def read_csv(path: str | os.PathLike[str]) -> FRFData:
     InputError
         One line naming the file, when the file is missing or not text, has no data rows,
         a value that is not a number, rows of different lengths, not an odd number (at least
-        3) of columns, an unknown quantity, or breaks the rules of the FRF file (frequencies
-        strictly increasing, >= 0; finite values; not all imaginary parts zero); or when it
-        is larger than :data:`automodal.io.limits.MAX_TEXT_BYTES` (not read).
+        3) of columns, a header whose pairs are not (real, imaginary), (magnitude, phase) or
+        (dB, phase), a phase without a unit, a negative magnitude, an unknown quantity, or
+        breaks the rules of the FRF file (frequencies strictly increasing, >= 0; finite
+        values; not all imaginary parts zero); or when it is larger than
+        :data:`automodal.io.limits.MAX_TEXT_BYTES` (not read).
     """
     return read_refusing(_read_csv, path)
 
@@ -112,10 +119,15 @@ def _read_csv(path: Path, source: str) -> FRFData:
     if n_cols < 3 or n_cols % 2 == 0:
         raise InputError(f"{n_cols} columns; {_CSV_LAYOUT} (an odd number of columns, at "
                          "least 3)", source)
-    frf = (table[:, 1::2] + 1j * table[:, 2::2])[:, :, np.newaxis]
-    names = [] if header is None else [_pair_name(h, k) for k, h in enumerate(header[1::2])]
+    if header is None:
+        frf = (table[:, 1::2] + 1j * table[:, 2::2])[:, :, np.newaxis]
+        names: list[str] = []
+        layout = "real, imaginary (no header)"
+    else:
+        frf, names, layout = _columns_by_header(table, header, source)
     data = FRFData(frequency=table[:, 0], frf=frf, quantity=quantity, output_names=names,
-                   attributes={"source_format": "CSV table", "quantity_source": quantity_source},
+                   attributes={"source_format": "CSV table", "quantity_source": quantity_source,
+                               "csv_columns": layout},
                    source=source)
     check_not_real_valued(data.frf, source)
     return data
@@ -166,11 +178,83 @@ def _number_table(cells: list[tuple[int, list[str]]], source: str) -> np.ndarray
     return np.array(values, dtype=np.float64)
 
 
-def _pair_name(real_header: str, k: int) -> str:
-    """An output's name from the header of its real column."""
-    wrapped = _REAL_WRAPPED.match(real_header)
-    name = wrapped.group(2).strip() if wrapped else _REAL_SUFFIX.sub("", real_header)
-    return name or f"y{k + 1}"
+_TOKENS = re.compile(r"[a-z]+|°", re.IGNORECASE)
+_REAL_WORDS = {"re", "real"}
+_IMAG_WORDS = {"im", "imag", "imaginary"}
+_MAG_WORDS = {"mag", "magnitude", "abs", "amp", "amplitude", "modulus"}
+_PHASE_WORDS = {"phase", "angle"}
+_DEG_WORDS = {"deg", "degree", "degrees", "°"}
+_RAD_WORDS = {"rad", "radian", "radians"}
+_KIND_WORDS = (_REAL_WORDS | _IMAG_WORDS | _MAG_WORDS | _PHASE_WORDS | _DEG_WORDS
+               | _RAD_WORDS | {"db"})
+_PAIRS = "(real, imaginary), (magnitude, phase) or (dB, phase)"
+
+
+def _column_kind(name: str) -> str:
+    """What a column's header says it holds: ``re``, ``im``, ``mag``, ``db``,
+    ``phase_deg``, ``phase_rad``, ``phase`` (no unit) or ``other``."""
+    words = {w.lower() for w in _TOKENS.findall(name)}
+    if words & _PHASE_WORDS:
+        if words & _DEG_WORDS:
+            return "phase_deg"
+        return "phase_rad" if words & _RAD_WORDS else "phase"
+    if "db" in words:
+        return "db"
+    if words & _MAG_WORDS:
+        return "mag"
+    if words & _REAL_WORDS or _REAL_WRAPPED.match(name.strip()):
+        return "re"
+    if words & _IMAG_WORDS:
+        return "im"
+    return "other"
+
+
+def _columns_by_header(table: np.ndarray, header: list[str],
+                       source: str) -> tuple[np.ndarray, list[str], str]:
+    """The FRFs ``(lines, pairs, 1)``, output names and a description of the columns, read
+    by what the header names each column pair: (real, imaginary) (also when the header does
+    not say), (magnitude, phase) or (dB, phase), phase in degrees or radians as its header
+    says. Any other pairing is refused: guessing would misread the data silently."""
+    frf = np.empty((table.shape[0], (table.shape[1] - 1) // 2), dtype=complex)
+    names, kinds = [], set()
+    for k in range(frf.shape[1]):
+        first, second = header[1 + 2 * k], header[2 + 2 * k]
+        a, b = _column_kind(first), _column_kind(second)
+        x, y = table[:, 1 + 2 * k], table[:, 2 + 2 * k]
+        where = f"columns {2 + 2 * k} and {3 + 2 * k} ({first!r}, {second!r})"
+        if (a, b) in {("re", "im"), ("other", "other"), ("re", "other"), ("other", "im")}:
+            frf[:, k] = x + 1j * y
+            kinds.add("real, imaginary")
+        elif a in ("mag", "db") and b.startswith("phase"):
+            if b == "phase":
+                raise InputError(f"{where}: the phase's unit is not stated; name the column "
+                                 "e.g. 'phase_deg' or 'phase_rad'", source)
+            if a == "mag" and np.any(x < 0):
+                raise InputError(f"{where}: a negative magnitude; is the column in dB? "
+                                 "name it e.g. 'mag_dB'", source)
+            magnitude = 10.0 ** (x / 20.0) if a == "db" else x
+            phase = np.deg2rad(y) if b == "phase_deg" else y
+            frf[:, k] = magnitude * np.exp(1j * phase)
+            kinds.add(("dB" if a == "db" else "magnitude") + ", phase in "
+                      + ("degrees" if b == "phase_deg" else "radians"))
+        else:
+            raise InputError(f"{where} are not a {_PAIRS} pair; rename the header's columns "
+                             "or remove the header (then they are read as real, imaginary)",
+                             source)
+        names.append(_output_name(first, k))
+    return frf[:, :, np.newaxis], names, "; ".join(sorted(kinds)) + " (from the header)"
+
+
+def _output_name(first_header: str, k: int) -> str:
+    """An output's name from the header of its pair's first column: without the words that
+    say what the column holds (``re``, ``mag``, ``dB``, units) and bracketed units."""
+    wrapped = _REAL_WRAPPED.match(first_header.strip())
+    if wrapped:
+        return wrapped.group(2).strip() or f"y{k + 1}"
+    bare = re.sub(r"[(\[][^)\]]*[)\]]", " ", first_header)  # units in brackets
+    kept = [w for w in re.split(r"[\s_.\-()\[\]|/]+", bare)
+            if w and w.lower() not in _KIND_WORDS]
+    return " ".join(kept) or f"y{k + 1}"
 
 
 def _known_quantity(value: str, where: str, source: str) -> str:
