@@ -231,6 +231,13 @@ class _Problem:
         Ys = _stack(Y)
         return cls(s=s, sw=sw, Qf=Qf, Yf=Ys - Qf @ (Qf.T @ Ys))
 
+    def extended(self, X: np.ndarray) -> _Problem:
+        """The same problem with the stacked columns ``X`` (already off the fixed ones,
+        see :meth:`off_fixed`) added to the fixed part."""
+        Qe = _orthonormal(X) if X.shape[1] else X
+        return _Problem(s=self.s, sw=self.sw, Qf=np.hstack([self.Qf, Qe]),
+                        Yf=self.Yf - Qe @ (Qe.T @ self.Yf))
+
     def off_fixed(self, X: np.ndarray) -> np.ndarray:
         """Stacked ``X`` with the fixed columns projected out."""
         return X - self.Qf @ (self.Qf.T @ X)
@@ -434,40 +441,25 @@ def refine_poles(
     if m == 0 or N < 2 * (2 * m + fixed.size + 1):
         return PoleRefinement(free0.copy(), nan_cov, np.full(m, np.nan), np.zeros(m, bool), 0)
     s, sw, Y = _whitened(omega, H, variance)
-    poles, cov, disp, ok, it = _refine_all(s, sw, Y, free0, _reach(free0, fixed), fixed,
-                                           max_iterations)
-    return PoleRefinement(poles=poles, covariance=cov, dispersion=disp, refined=ok,
-                          iterations=it)
-
-
-def _refine_all(
-    s: np.ndarray, sw: np.ndarray, Y: np.ndarray, start: np.ndarray, reach: np.ndarray,
-    fixed: np.ndarray, max_iterations: int,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
-    """The fit of :func:`refine_poles` on whitened data: the poles from ``start``, the
-    poles ``fixed`` and the band's residual terms in the basis. A pole that leaves what a
-    refinement may do is held at its start and the others go on from where they were.
-    Returns the poles, their covariance and dispersion, which were refined, and the
-    iterations of the last fit."""
-    m = start.size
+    reach = _reach(free0, fixed)
     ok = np.ones(m, bool)
-    poles, it, prob = start.copy(), 0, None
-    current = start.copy()
+    poles, it, prob = free0.copy(), 0, None
+    current = free0.copy()
     for _ in range(m):  # refit with the poles that failed held fixed (one more each time)
         idx = np.flatnonzero(ok)
-        held = np.concatenate([start[~ok], fixed])
+        held = np.concatenate([free0[~ok], fixed])
         prob = _Problem.make(s, sw, Y, held)
-        first, limit = start[idx], reach[idx]
+        start, limit = free0[idx], reach[idx]
 
-        def left(got: np.ndarray, first: np.ndarray = first,
+        def left(got: np.ndarray, start: np.ndarray = start,
                  limit: np.ndarray = limit) -> np.ndarray:
             # out of reach or unstable: no later step brings a pole back from there
-            return (np.abs(got - first) > limit) | (got.real >= 0) | (got.imag <= 0)
+            return (np.abs(got - start) > limit) | (got.real >= 0) | (got.imag <= 0)
 
-        def strayed(got: np.ndarray, first: np.ndarray = first) -> np.ndarray:
+        def strayed(got: np.ndarray, start: np.ndarray = start) -> np.ndarray:
             # the half-bandwidth is judged at the end only: from a start off its resonance
             # a pole first widens to reach it (4.8 times, 5 half-bandwidths off), then narrows
-            ratio = np.abs(got.real) / np.maximum(np.abs(first.real), 1e-12)
+            ratio = np.abs(got.real) / np.maximum(np.abs(start.real), 1e-12)
             return (left(got) | (ratio > MAX_DAMPING_CHANGE)
                     | (ratio < 1.0 / MAX_DAMPING_CHANGE))
 
@@ -480,20 +472,17 @@ def _refine_all(
         current[idx] = got  # the others go on from where they were
         if not ok.any():
             break
-    nan_cov = np.full((m, 2, 2), np.nan)
     idx = np.flatnonzero(ok)
-    if idx.size == 0:
-        return start.copy(), nan_cov, np.full(m, np.nan), ok, it
-    cov, disp = _covariance(prob, poles[idx])
-    out_cov, out_disp = nan_cov.copy(), np.full(m, np.nan)
-    out_cov[idx], out_disp[idx] = cov, disp
-    bad = ~np.all(np.isfinite(out_cov), axis=(1, 2)) | (out_cov[:, 0, 0] < 0) | (
-        out_cov[:, 1, 1] < 0)
-    bad &= ok
-    ok[bad] = False
-    poles[bad] = start[bad]
-    out_cov[bad] = np.nan
-    return poles, out_cov, out_disp, ok, it
+    cov, disp = nan_cov, np.full(m, np.nan)
+    if idx.size:
+        cov[idx], disp[idx] = _covariance(prob, poles[idx])
+        singular = ~np.all(np.isfinite(cov[idx]), axis=(1, 2)) | (cov[idx, 0, 0] < 0) | (
+            cov[idx, 1, 1] < 0)
+        ok[idx[singular]] = False
+        poles[idx[singular]] = free0[idx[singular]]
+        cov[idx[singular]] = np.nan
+    return PoleRefinement(poles=poles, covariance=cov, dispersion=disp, refined=ok,
+                          iterations=it)
 
 
 def _covariance(prob: _Problem, poles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -629,7 +618,7 @@ def duplicate_poles(
     if expendable is not None:  # an expendable pole is a split of its nearest resonance
         nearest = {int(e): min((p for p in pairs if e in p[1:]), default=None)
                    for e in np.flatnonzero(expendable)}
-        pairs = sorted({p for p in nearest.values() if p is not None})
+        pairs = list({p for p in nearest.values() if p is not None})
     if not pairs:
         return dup
     s, sw, Y = _whitened(omega, H, variance)
@@ -648,9 +637,7 @@ def duplicate_poles(
             weak, strong = (a, b) if wald[a] < wald[b] else (b, a)
         # the basis of the others: the fixed part once, the other tested poles off it
         keep = (~dup) & (np.arange(m) != a) & (np.arange(m) != b)
-        Qe = _orthonormal(tested[:, np.repeat(keep, 2)]) if keep.any() else base.Qf[:, :0]
-        prob = _Problem(s=s, sw=sw, Qf=np.hstack([base.Qf, Qe]),
-                        Yf=base.Yf - Qe @ (Qe.T @ base.Yf))
+        prob = base.extended(tested[:, np.repeat(keep, 2)])
         both = _fit(prob, poles[[a, b]])[0]
         alone, _ = _gauss_newton(prob, poles[[strong]], MAX_ITERATIONS)
         delta = _fit(prob, alone)[0] - both

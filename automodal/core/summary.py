@@ -263,9 +263,8 @@ def refine_physical_modes(
     duplicate[refined] = duplicate_poles(
         omega, H, variance, fit.poles[refined],
         np.concatenate([fit.poles[np.setdiff1d(np.arange(free.size), refined)], fixed]))
-    shifted = replace(fit, poles=fit.poles[:k] + pole_shift,
-                      covariance=fit.covariance[:k])
-    f, f_std, z, z_std = shifted.frequency_damping()
+    f, f_std, z, z_std = (x[:k] for x in
+                          replace(fit, poles=fit.poles + pole_shift).frequency_damping())
     ok = fit.refined[:k]
     out = []
     for m in modes:
