@@ -169,3 +169,15 @@ def test_report_says_which_weighting_ran():
     assert result.orders["weighting"] == "noise"
     result = identify(case.data, Settings(seed=0, n_bootstrap=10, weighting="envelope"))
     assert result.orders["weighting"] == "envelope"
+
+
+def test_a_short_noise_record_finds_no_physical_mode_and_does_not_crash():
+    """20 lines of SISO noise: the bootstrap replicates fall back to the QR path with fewer
+    columns than the model order (a broadcasting error before); no mode is physical."""
+    from automodal.frfdata import FRFData
+
+    rng = np.random.default_rng(0)
+    frf = (rng.standard_normal(20) + 1j * rng.standard_normal(20))[:, None, None]
+    data = FRFData(frequency=np.arange(20) * 0.25, frf=frf, quantity="displacement")
+    result = identify(data, Settings(seed=1))
+    assert not any(m.physical for m in result.modes)

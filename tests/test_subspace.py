@@ -251,3 +251,15 @@ def test_stacked_replicates_equal_replicates_alone():
         ref = modes_of_discrete(A, C, T)
         np.testing.assert_allclose(stacked[b].poles, ref.poles, rtol=1e-12)
         assert np.all(np.abs(np.sum(stacked[b].shapes.conj() * ref.shapes, axis=0)) > 1 - 1e-10)
+
+
+def test_qr_observability_of_fewer_columns_than_the_order_is_completed():
+    """An ``L22`` of 9 columns at order 10 (a replicate of few lines) gives 10 orthonormal
+    directions, its own 9 first, like the Gram path."""
+    rng = np.random.default_rng(0)
+    l22 = rng.standard_normal((11, 9))
+    O, sv = subspace.observability_from_l22(l22, 10)
+    assert O.shape == (11, 10) and sv.shape == (10,)
+    np.testing.assert_allclose(O.T @ O, np.eye(10), atol=1e-12)
+    np.testing.assert_allclose(sv[:9], np.linalg.svd(l22, compute_uv=False))
+    assert sv[9] == 0.0

@@ -427,8 +427,16 @@ def schur_from_data(
 
 
 def observability_from_l22(l22: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
-    """Leading ``n`` left singular vectors of ``L22`` and all its singular values."""
-    u, s, _ = np.linalg.svd(l22, full_matrices=False)
+    """Leading ``n`` left singular vectors of ``L22`` and all its singular values.
+
+    When ``L22`` has fewer than ``n`` columns (a replicate of few lines), the basis is
+    completed by directions of zero singular value, and the singular values by zeros, as
+    the Gram path's eigenvectors of ``L22 L22^T`` are (a 20-line SISO file of noise at order
+    10 ended in a broadcasting error on the QR fallback)."""
+    short = l22.shape[1] < n
+    u, s, _ = np.linalg.svd(l22, full_matrices=short)
+    if short:
+        s = np.concatenate([s, np.zeros(max(0, min(n, u.shape[1]) - s.size))])
     return u[:, :n], s
 
 
