@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -46,6 +46,7 @@ from automodal.core import (
 from automodal.core.bilinear import default_scale, to_unit_circle
 from automodal.core.clustering import TRASHBOX
 from automodal.core.from_time import as_frfdata
+from automodal.core.pole_map import PoleMap
 from automodal.core.reciprocity import apply_reciprocity
 from automodal.errors import InputError
 from automodal.frfdata import FRFData
@@ -99,7 +100,7 @@ class Prepared:
     H: np.ndarray  # analysed FRF, oriented for identification (reciprocity applied)
     band_hz: tuple[float, float]
     reciprocal: bool
-    omega: np.ndarray
+    omega: np.ndarray  # lines at which the model is fitted, rad/s (prewarped when sampled)
     T: float  # bilinear scale
     z: np.ndarray  # lines on the unit circle
     scales: np.ndarray  # per-output scaling (noise std, or RMS without a noise model)
@@ -126,11 +127,12 @@ class Prepared:
         """The noise variance oriented like ``H`` (data units), or ``None``."""
         return None if self.noise is None else _oriented(self.noise.variance, self.reciprocal)
 
+    pole_map: PoleMap = field(default_factory=PoleMap)  # model poles -> the structure's
+
     @property
-    def window_decay(self) -> float:
-        """Decay (1/s) of an exponential window on the data: it moved every pole by
-        ``-decay``, which the pipeline adds back."""
-        return float(self.data.attributes.get("window_decay_per_s", 0.0) or 0.0)
+    def band_rad_s(self) -> tuple[float, float]:
+        """The analysed band in rad/s (of the structure, not prewarped)."""
+        return 2.0 * np.pi * float(self.frequency[0]), 2.0 * np.pi * float(self.frequency[-1])
 
 
 def prepare(data: FRFData, s: Settings, warnings: list[str]) -> Prepared:
@@ -148,7 +150,11 @@ def prepare(data: FRFData, s: Settings, warnings: list[str]) -> Prepared:
         warnings.append(f"no noise model ({exc}): envelope line weights and RMS scales,"
                         " bootstrap intervals")
     H, reciprocal = apply_reciprocity(H, warnings)
-    omega = 2.0 * np.pi * freq
+    pole_map = pole_map_of(data)
+    try:
+        omega = pole_map.model_omega(2.0 * np.pi * freq)
+    except ValueError as exc:
+        raise InputError(f"attribute discrete_sample_rate_hz: {exc}", data.source) from None
     T = default_scale(omega[0], omega[-1])
     weighting = s.weighting_for(data.attributes.get("analysis") == "operational")
     scales, Hs, weights, variance = _weighted(
@@ -157,8 +163,29 @@ def prepare(data: FRFData, s: Settings, warnings: list[str]) -> Prepared:
     return Prepared(
         data=data, frequency=freq, H=H, band_hz=band, reciprocal=reciprocal, omega=omega, T=T,
         z=to_unit_circle(omega, T), scales=scales, Hs=Hs, line_weights=weights,
-        noise=noise, variance=variance,
+        noise=noise, variance=variance, pole_map=pole_map,
     )
+
+
+def pole_map_of(data: FRFData) -> PoleMap:
+    """How the model's poles become the structure's, from the data's attributes:
+    ``window_decay_per_s`` (an exponential window's decay, 1/s) and
+    ``discrete_sample_rate_hz`` (the FRFs are spectra of sampled signals, rational in
+    ``exp(j 2 pi f / fs)``: the half spectra of output-only data).
+
+    Raises
+    ------
+    InputError
+        If either attribute is not a finite number (the rate: positive).
+    """
+    attrs = data.attributes
+    decay, rate = attrs.get("window_decay_per_s"), attrs.get("discrete_sample_rate_hz")
+    try:
+        return PoleMap(shift=float(decay or 0.0),
+                       sample_rate=None if rate is None else float(rate))
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"attributes window_decay_per_s / discrete_sample_rate_hz: {exc}",
+                         data.source) from None
 
 
 def _weighted(
@@ -245,7 +272,7 @@ def _identify(data: FRFData, s: Settings, progress: Callable[[int], None] | None
         choice = order.select_orders(p.z, p.Hs, p.line_weights, s.max_order, p.data.source)
     ref = reference.build_reference(
         p.z, p.Hs, p.scales, p.line_weights, choice.reference, p.T,
-        (float(p.omega[0]), float(p.omega[-1])), s.zeta_max, s.coalescence, p.window_decay,
+        p.band_rad_s, s.zeta_max, s.coalescence, p.pole_map,
     )
     ref_dispersion, H_ref = 1.0, None
     if p.variance is not None:
@@ -264,7 +291,7 @@ def _identify(data: FRFData, s: Settings, progress: Callable[[int], None] | None
     if p.noise is not None:
         modes = summary.refine_physical_modes(
             modes, ref.modal.poles, ref.modal.oscillatory, p.omega, p.H, p.noise_variance,
-            p.window_decay)
+            p.pole_map)
     keep = summary.physical_reference_modes(modes, clusters.subspaces)
     H_syn = ref.modal.synthesize(p.z, keep) * p.scales[None, :, None]
     return Result(
@@ -275,7 +302,7 @@ def _identify(data: FRFData, s: Settings, progress: Callable[[int], None] | None
         warnings=warnings,
         poles=PoleTable.from_poles(reps.poles, clusters.labels, reps.replicate),
         band_hz=(float(p.band_hz[0]), float(p.band_hz[1])),
-        orders=_orders_info(choice, ref, reps.n_qr, p.T, p.weighting),
+        orders=_orders_info(choice, ref, reps.n_qr, p.T, p.weighting, p.pole_map),
         runtime_s=time.perf_counter() - t0,
         reference_model=ref.model,
         reciprocity=p.reciprocal,
@@ -338,15 +365,17 @@ def _replicates(
             "bootstrap over frequency lines: the spread is conditional on the one noise"
             " realization in the data"
         )
-    return replicates.stack_replicates(reps, p.H.shape[1], p.window_decay)
+    return replicates.stack_replicates(reps, p.H.shape[1], p.pole_map)
 
 
 def _orders_info(
     choice: order.OrderChoice, ref: reference.Reference, n_qr: int, T: float,
-    weighting: str,
+    weighting: str, pole_map: PoleMap,
 ) -> dict[str, object]:
     """``Result.orders``: the scan, the orders chosen and how the models were computed
-    (``weighting``: the one that ran, ``"noise"`` or ``"envelope"``)."""
+    (``weighting``: the one that ran, ``"noise"`` or ``"envelope"``; ``window_decay_per_s``
+    and ``discrete_sample_rate_hz``: how the model's poles became the structure's, see
+    :class:`~automodal.core.pole_map.PoleMap`)."""
     return {
         "scanned": [int(x) for x in choice.scanned],
         "misfit": [float(x) for x in choice.misfit],
@@ -359,6 +388,8 @@ def _orders_info(
         "bilinear_T": float(T),
         "replicates_on_qr_path": int(n_qr),
         "reference_path": ref.model.path,
+        "window_decay_per_s": float(pole_map.shift),
+        "discrete_sample_rate_hz": pole_map.sample_rate,
     }
 
 

@@ -9,6 +9,7 @@ from automodal.core import bilinear, reference, subspace
 from automodal.core import simulate as sim
 from automodal.core.modal import modes_of_discrete
 from automodal.core.modal_model import ModalModel, synthesize
+from automodal.core.pole_map import PoleMap
 
 
 def _random_model(n_modes: int = 5, ny: int = 3, nu: int = 2, seed: int = 0):
@@ -75,7 +76,7 @@ def test_modes_equal_modes_of_discrete():
     np.testing.assert_array_equal(mine.mu, direct.mu)
     np.testing.assert_array_equal(mine.shapes, direct.shapes)
     np.testing.assert_array_equal(mine.participation, direct.participation)
-    shifted = ModalModel(A, B, C, D, T).modes(pole_shift=0.5)
+    shifted = ModalModel(A, B, C, D, T).modes(PoleMap(shift=0.5))
     np.testing.assert_array_equal(shifted.poles, direct.poles + 0.5)
 
 

@@ -211,7 +211,7 @@ def test_half_spectra_have_the_state_space_form(ambient_test, truth):
     # covariance; the white force and sensor noise enter R(0) only); the window rho^tau
     # turns the one-sided sum into Δt [R(0)/2 + C (zI - rho Ad)^-1 rho (Ad P C_ref^T + ...)]
     P = scipy.linalg.solve_discrete_lyapunov(Ad, Bd @ Bd.T)
-    rho = np.exp(-spectra.exponential_decay(L // 2, FS) / FS)
+    rho = np.exp(-spectra.exponential_decay(L, FS) / FS)
     k = (freq > 1) & (freq < 40)
     z = np.exp(2j * np.pi * freq[k] / FS)
     inv = np.linalg.inv(z[:, None, None] * np.eye(Ad.shape[0]) - rho * Ad)

@@ -83,6 +83,8 @@ def as_frfdata(data: FRFData | TimeSeries, **options: Any) -> FRFData:
     decay = info.get("lag_window_decay_per_s") or info.get("exponential_decay_per_s") or 0.0
     frf.attributes["time_analysis"] = info
     frf.attributes["window_decay_per_s"] = float(decay)
+    if info["analysis"] == "operational":  # half spectra: rational in exp(j w / fs)
+        frf.attributes["discrete_sample_rate_hz"] = float(data.sample_rate)
     return frf
 
 
@@ -108,8 +110,8 @@ def frfdata_from_time(
         (:func:`~automodal.core.spectra.detect_hits`), random otherwise.
         ``"operational"`` with measured forces ignores them.
     nperseg : int, optional
-        Segment length (random: Welch segment; operational: FFT length, max lag
-        ``nperseg // 2``). Default :func:`~automodal.core.spectra.choose_segment`. Ignored
+        Segment length (random: Welch segment; operational: the number of lags, which
+        is also the FFT length). Default :func:`~automodal.core.spectra.choose_segment`. Ignored
         for impacts (one record per hit).
     references : list of int, optional
         Reference outputs of the operational route (default automatic).
@@ -301,7 +303,7 @@ def _operational(
         else spectra.choose_references(ts.outputs, fs, max_refs=max_references)
     )
     freq, G = spectra.half_spectra(ts.outputs, refs, fs, L, tail=tail)
-    m = L // 2
+    m = L
     names = [ts.output_names[i] for i in refs]
     info.update(
         analysis="operational",

@@ -14,6 +14,7 @@ import numpy as np
 from automodal.core.bilinear import poles_d2c
 from automodal.core.correlation import moc_vectors
 from automodal.core.modal import ModeSet, normalise_shapes, oscillatory_order
+from automodal.core.pole_map import PoleMap
 from automodal.core.subspace import StateSpaceModel, modal_sum
 
 
@@ -73,20 +74,21 @@ class ModalModel:
             self._modal_inputs = np.linalg.solve(self.V, self.B)
         return self._modal_inputs
 
-    def modes(self, pole_shift: float = 0.0) -> ModeSet:
+    def modes(self, pole_map: PoleMap | None = None) -> ModeSet:
         """The oscillatory modes, as :func:`automodal.core.modal.modes_of_discrete` gives
         them for ``(A, C, T, B)``.
 
         Parameters
         ----------
-        pole_shift : float
-            Added to every continuous-time pole (an exponential window of decay ``d``
-            moved every pole by ``-d``: ``pole_shift = d`` undoes it).
+        pole_map : PoleMap, optional
+            From the model's continuous-time poles to the structure's (an exponential
+            window's decay, sampled spectra); default none.
         """
         sel = self.oscillatory
         part = None if self.B is None else self.modal_inputs[sel]
+        poles = self.poles[sel]
         return ModeSet(
-            poles=self.poles[sel] + pole_shift,
+            poles=poles if pole_map is None else pole_map(poles),
             mu=self.mu[sel],
             shapes=normalise_shapes(self.C @ self.V[:, sel]),
             participation=part,

@@ -20,6 +20,7 @@ from automodal.core import clustering, subspace
 from automodal.core.correlation import moc_vectors
 from automodal.core.modal import ModeSet
 from automodal.core.modal_model import ModalModel
+from automodal.core.pole_map import PoleMap
 from automodal.core.replicates import ReplicatePoles
 
 
@@ -37,7 +38,8 @@ class Reference:
     basis : RowBasis
         Row basis of its block rows (shared by the replicates).
     modes : ModeSet
-        Its oscillatory modes (scaled shapes; poles shifted by the window's decay).
+        Its oscillatory modes (scaled shapes; the structure's poles, see
+        :class:`~automodal.core.pole_map.PoleMap`).
     contribution : ndarray
         Modal contribution of each mode (:meth:`ModalModel.contributions`).
     candidates : ndarray of bool
@@ -76,7 +78,7 @@ def build_reference(
     band_rad_s: tuple[float, float],
     zeta_max: float,
     coalescence: float,
-    pole_shift: float = 0.0,
+    pole_map: PoleMap | None = None,
 ) -> Reference:
     """Identify the reference model of order ``n`` and prepare its groups.
 
@@ -100,13 +102,13 @@ def build_reference(
         Largest damping ratio of a candidate.
     coalescence : float
         Half-power bandwidths within which candidates group.
-    pole_shift : float
-        Added to every pole (an exponential window's decay).
+    pole_map : PoleMap, optional
+        From the model's poles to the structure's (window decay, sampled spectra).
     """
     basis = subspace.row_basis(z, subspace.block_rows(n, Hs.shape[1]))
     scaled = subspace.identify_scaled(z, Hs, n, T, basis, weights=weights)
     modal = ModalModel.from_state_space(scaled)
-    modes = modal.modes(pole_shift)
+    modes = modal.modes(pole_map)
     contribution = modal.contributions()
     cand = clustering.physical_candidates(modes.poles, band_rad_s, zeta_max)
     cand_idx = np.flatnonzero(cand)

@@ -18,6 +18,7 @@ import numpy as np
 
 from automodal.core import bootstrap, subspace
 from automodal.core.parallel import gather, thread_map, worker_count
+from automodal.core.pole_map import PoleMap
 from automodal.errors import InputError
 
 REPLICATE_CHUNK_BYTES = 32 * 2**20
@@ -273,16 +274,18 @@ class ReplicatePoles:
 
 
 def stack_replicates(
-    reps: list[bootstrap.ReplicateModes], ny: int, pole_shift: float = 0.0
+    reps: list[bootstrap.ReplicateModes], ny: int, pole_map: PoleMap | None = None
 ) -> ReplicatePoles:
-    """All replicates' modes in one set of arrays, ``pole_shift`` added to every pole (an
-    exponential window's decay, see :meth:`automodal.core.modal_model.ModalModel.modes`)."""
+    """All replicates' modes in one set of arrays, their poles the structure's
+    (``pole_map`` applied, see :meth:`automodal.core.modal_model.ModalModel.modes`)."""
     if not reps:
         empty = np.zeros(0, complex)
         return ReplicatePoles(poles=empty, mu=empty, shapes=np.zeros((ny, 0), complex),
                               replicate=np.zeros(0, int), n_qr=0)
     replicate = np.concatenate([np.full(len(r.poles), b) for b, r in enumerate(reps)])
-    poles = np.concatenate([r.poles for r in reps]) + pole_shift
+    poles = np.concatenate([r.poles for r in reps])
+    if pole_map is not None:
+        poles = pole_map(poles)
     mu = np.concatenate([r.mu for r in reps])
     shapes = np.hstack([r.shapes for r in reps])
     return ReplicatePoles(poles=poles, mu=mu, shapes=shapes, replicate=replicate.astype(int),

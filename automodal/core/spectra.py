@@ -616,22 +616,29 @@ def half_spectra(
     spectrum would also hold their mirror images; measurement noise that is white only
     enters ``R(0)``, that is ``D``.
 
-    Steps: the unbiased correlations at lags ``0 .. M - 1`` with ``M = nperseg // 2``
+    Steps: the unbiased correlations at lags ``0 .. M - 1`` with ``M = nperseg``
     (:func:`cross_correlation`); ``R(0)`` halved (the positive-spectrum convention, so that
     ``G+ + G+^H`` is the two-sided spectrum); an exponential lag window
-    ``w(tau) = exp(-a tau / fs)`` with ``w(M) = tail``; a real FFT of length ``nperseg``
-    (zero-padded), times ``1 / fs`` (units^2/Hz).
+    ``w(tau) = exp(-a tau / fs)`` with ``w(M) = tail``; a real FFT of length ``M`` (no
+    zero padding), times ``1 / fs`` (units^2/Hz).
+
+    Why no zero padding: at the lines of a length-``M`` DFT, ``z^M = 1``, so the sum
+    truncated after ``M`` lags is ``C (I - A_w^M) (z I - A_w)^-1 G``: exactly rational with
+    the same poles (only the residues scale by ``1 - mu^M``). Zero-padded to ``2 M``, the
+    truncation leaves a term ``(A_w / z)^M`` that alternates in sign from line to line and
+    no model of the structure's order fits (a misfit floor of 2 % on exact spectra, with
+    the lowest mode of a 5-DOF chain lost once the lines were placed exactly, see
+    :class:`automodal.core.pole_map.PoleMap`).
 
     Choice of the lag window: an exponential keeps the exact state-space form (it turns
     ``A`` into ``exp(-a / fs) A``: every pole moves left by ``a``, frequencies stay and
     the damping can be corrected with :func:`undo_exponential_window`), and it damps the
     long lags, whose estimates are the noisiest (their error does not decay with ``tau``
-    while the structure's correlation does). Truncating at ``M`` leaves a term of relative
-    size ``tail`` (1 %) times the structure's own decay over ``M``. The max lag ``M`` is a
+    while the structure's correlation does). The max lag ``M`` is a
     trade-off: longer lags keep the added damping ``a`` small (at 1 % tail,
     ``a = 4.6 fs / M``; the half-power bandwidth grows by ``a / pi`` Hz) and so resolve
     close modes, shorter lags average more: about ``N / M`` independent blocks enter each
-    lag. ``nperseg`` from :func:`choose_segment` gives ``N / M >= 64`` on long records.
+    lag. ``nperseg`` from :func:`choose_segment` gives ``N / M >= 32`` on long records.
 
     Parameters
     ----------
@@ -642,7 +649,7 @@ def half_spectra(
     fs : float
         Sample rate in Hz.
     nperseg : int
-        FFT length; the max lag is ``nperseg // 2`` samples.
+        Number of lags, which is also the FFT length (lines ``fs / nperseg`` apart).
     tail : float
         Value of the lag window at the max lag, in (0, 1).
 
@@ -653,7 +660,7 @@ def half_spectra(
     G : ndarray, shape (n_freq, n_out, n_ref), complex
         Half spectra.
     """
-    m = int(nperseg) // 2
+    m = int(nperseg)
     R = cross_correlation(outputs, refs_idx, m)
     a = exponential_decay(m, fs, tail)
     w = np.exp(-a * np.arange(m) / fs)

@@ -15,6 +15,7 @@ import numpy as np
 
 from automodal.core import clustering, physicalness
 from automodal.core.modal import ModeSet, mpc, normalise_shapes, unit_max_shapes
+from automodal.core.pole_map import PoleMap
 from automodal.core.refine import duplicate_poles, refine_poles
 from automodal.result import IdentifiedMode
 
@@ -205,7 +206,7 @@ def refine_physical_modes(
     omega: np.ndarray,
     H: np.ndarray,
     variance: np.ndarray,
-    pole_shift: float = 0.0,
+    pole_map: PoleMap | None = None,
 ) -> list[IdentifiedMode]:
     """The modes, the physical ones with their frequency, damping and intervals from the
     maximum-likelihood refinement of their poles (:func:`automodal.core.refine.refine_poles`).
@@ -230,8 +231,9 @@ def refine_physical_modes(
         Indices into ``states`` of the reference modes (``reference_mode`` indexes it).
     omega, H, variance
         Lines (rad/s), FRF and noise variance, as for :func:`refine_poles`.
-    pole_shift : float
-        Added to the refined poles (an exponential window's decay).
+    pole_map : PoleMap, optional
+        From the model's poles to the structure's, applied to the refined poles and their
+        covariance.
     """
     counts = Counter(m.reference_mode for m in modes if m.physical and m.reference_mode >= 0)
     chosen = sorted(i for i, c in counts.items() if c == 1)
@@ -263,8 +265,10 @@ def refine_physical_modes(
     duplicate[refined] = duplicate_poles(
         omega, H, variance, fit.poles[refined],
         np.concatenate([fit.poles[np.setdiff1d(np.arange(free.size), refined)], fixed]))
-    f, f_std, z, z_std = (x[:k] for x in
-                          replace(fit, poles=fit.poles + pole_shift).frequency_damping())
+    if pole_map is not None:
+        fit = replace(fit, poles=pole_map(fit.poles),
+                      covariance=pole_map.covariance(fit.poles, fit.covariance))
+    f, f_std, z, z_std = (x[:k] for x in fit.frequency_damping())
     ok = fit.refined[:k]
     out = []
     for m in modes:

@@ -68,7 +68,8 @@ def read_frf(path: str | os.PathLike[str]) -> FRFData:
         If the file is missing, not HDF5, truncated or damaged, or breaks the spec in any
         way a reader must refuse (missing or malformed ``/frf`` or ``/frequency``, non-finite
         values, frequencies not strictly increasing or negative, unknown ``quantity``, newer
-        ``version``, a ``window_decay_per_s`` attribute that is not a finite number >= 0,
+        ``version``, a ``window_decay_per_s`` attribute that is not a finite number >= 0, a
+        ``discrete_sample_rate_hz`` that is not a finite number > 0,
         a dataset of more than :data:`automodal.io.limits.MAX_VALUES` numbers, refused
         before it is read, ...). The message is one line and names the file. Time-series
         input (``/time`` without ``/frf``) is refused too: it is read by
@@ -183,15 +184,18 @@ def _read_xyz(f: h5py.File, n_outputs: int) -> np.ndarray | None:
 
 def _checked_attributes(attributes: dict[str, Any]) -> dict[str, Any]:
     """``attributes``, after refusing a ``window_decay_per_s`` (an exponential window's
-    decay in 1/s, which the pipeline adds to every pole) that is not a finite number >= 0."""
-    decay = attributes.get("window_decay_per_s")
-    if decay is not None and (
-        isinstance(decay, bool) or not isinstance(decay, (int, float))
-        or not math.isfinite(decay) or decay < 0
-    ):
-        raise Refused(
-            f"attribute window_decay_per_s must be a finite number >= 0 (1/s), not {decay!r}"
-        )
+    decay in 1/s, which the pipeline adds to every pole) that is not a finite number >= 0,
+    and a ``discrete_sample_rate_hz`` (the FRFs are spectra of sampled signals) that is
+    not a finite number > 0."""
+    for name, low, unit in (("window_decay_per_s", ">= 0", "1/s"),
+                            ("discrete_sample_rate_hz", "> 0", "Hz")):
+        value = attributes.get(name)
+        if value is not None and (
+            isinstance(value, bool) or not isinstance(value, (int, float))
+            or not math.isfinite(value) or value < 0 or (value == 0 and low == "> 0")
+        ):
+            raise Refused(f"attribute {name} must be a finite number {low} ({unit}),"
+                          f" not {value!r}")
     return attributes
 
 
