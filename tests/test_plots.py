@@ -140,9 +140,10 @@ def test_reports_without_arrays_give_empty_entries(identified, tmp_path):
     result, data = identified
     write_report(tmp_path / "r.json", result, data, frf=(data.frequency, data.frf, data.frf))
     write_report(tmp_path / "plain.h5", result, data)
-    assert read_report_arrays(tmp_path / "r.json") == {"poles": {}, "frf": {}}
+    assert read_report_arrays(tmp_path / "r.json") == {"poles": {}, "frf": {},
+                                                       "stabilization": {}}
     plain = read_report_arrays(tmp_path / "plain.h5")
-    assert plain["frf"] == {} and plain["poles"]
+    assert plain["frf"] == {} and plain["poles"] and plain["stabilization"]
     with h5py.File(tmp_path / "plain.h5", "r") as f:
         assert "frf" not in f
 

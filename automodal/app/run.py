@@ -99,7 +99,8 @@ def save(out: str | os.PathLike[str], report: Report, result: Result) -> Path:
     from automodal.io.report import save_report
 
     try:
-        save_report(out, report, result.poles, frf=result.frf_fit)
+        save_report(out, report, result.poles, frf=result.frf_fit,
+                    stabilization=result.stabilization)
     except OSError as exc:
         reason = exc.strerror or " ".join(str(exc).split()) or type(exc).__name__
         raise InputError(f"cannot write the report: {reason}", os.fspath(out)) from exc
