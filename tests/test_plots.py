@@ -217,6 +217,7 @@ def test_physicalness_bars(report):
 def test_mode_shapes_as_bars_and_on_the_geometry(report):
     no_xyz = copy.deepcopy(report)
     no_xyz["input"]["output_xyz"] = None
+    no_xyz["input"]["mode_shape_xyz"] = None
     fig = plots.mode_shapes(no_xyz)
     assert len(fig.axes) == n_physical(report)
     ax = fig.axes[0]
@@ -250,7 +251,8 @@ def test_save_figures_writes_the_standard_set(report_h5, tmp_path):
     for p in written:
         assert p.read_bytes()[:8] == PNG_MAGIC
     few = plots.save_figures(report, {"poles": {}, "frf": {}}, tmp_path / "few", dpi=50)
-    assert [p.name for p in few] == ["overview.png", "physicalness.png", "mode_shapes.png"]
+    assert [p.name for p in few] == ["overview.png", "physicalness.png", "mode_shapes.png",
+                                     "automac.png"]
     assert sorted(p.name for p in (tmp_path / "few").iterdir()) == sorted(p.name for p in few)
 
 
