@@ -39,8 +39,10 @@ from automodal.core import (
     order,
     reference,
     replicates,
+    stabilization,
     subspace,
     summary,
+    synthesis,
     whitening,
 )
 from automodal.core.bilinear import default_scale, to_unit_circle
@@ -292,8 +294,8 @@ def _identify(data: FRFData, s: Settings, progress: Callable[[int], None] | None
         modes = summary.refine_physical_modes(
             modes, ref.modal.poles, ref.modal.oscillatory, p.omega, p.H, p.noise_variance,
             p.pole_map)
-    keep = summary.physical_reference_modes(modes, clusters.subspaces)
-    H_syn = ref.modal.synthesize(p.z, keep) * p.scales[None, :, None]
+    fit = _physical_fit(p, modes)
+    warnings.extend(resolution_warnings(modes, p.frequency, p.pole_map.shift))
     return Result(
         modes=modes,
         trashbox_members=int(np.sum(clusters.labels == TRASHBOX)),
@@ -306,7 +308,10 @@ def _identify(data: FRFData, s: Settings, progress: Callable[[int], None] | None
         runtime_s=time.perf_counter() - t0,
         reference_model=ref.model,
         reciprocity=p.reciprocal,
-        frf_fit=_frf_fit(p, H_syn),
+        frf_fit=_frf_fit(p, fit.synthesized),
+        frf_fit_error=_input_oriented(fit.normalised_error, p.reciprocal),
+        stabilization=stabilization.stabilization_poles(
+            choice.models, p.T, p.band_hz, s.zeta_max, p.pole_map),
         shape_channels=list(p.data.input_names if p.reciprocal else p.data.output_names),
         n_lines=int(p.H.shape[0]),
         noise=None if p.noise is None else NoiseInfo.from_estimate(
@@ -395,8 +400,64 @@ def _orders_info(
 
 def _frf_fit(p: Prepared, H_syn: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(frequency_hz, measured, synthesized)`` in the input's orientation."""
-    if p.reciprocal:
-        H_syn, H_meas = H_syn.transpose(0, 2, 1), p.H.transpose(0, 2, 1)
-    else:
-        H_meas = p.H
-    return p.frequency, np.ascontiguousarray(H_meas), np.ascontiguousarray(H_syn)
+    return (p.frequency, np.ascontiguousarray(_input_oriented(p.H, p.reciprocal)),
+            np.ascontiguousarray(_input_oriented(H_syn, p.reciprocal)))
+
+
+def _input_oriented(a: np.ndarray, reciprocal: bool) -> np.ndarray:
+    """An analysed-orientation array (``(..., ny, nu)``) in the input's orientation."""
+    return np.swapaxes(a, -1, -2) if reciprocal else a
+
+
+def _physical_fit(p: Prepared, modes: list[IdentifiedMode]) -> synthesis.FixedPoleFit:
+    """The analysed FRF synthesized from the physical modes' poles, with residues and upper
+    and lower residuals fitted by least squares (:mod:`automodal.core.synthesis`).
+
+    The poles are carried back to where they are in the data (the model's poles: an
+    exponential window's decay, prewarped sampled spectra). Output-only half spectra have
+    the pole-residue form as they are (power 0)."""
+    phys = [m for m in modes if m.physical and np.isfinite(m.frequency_hz)
+            and np.isfinite(m.damping_ratio)]
+    lam = synthesis.modal_poles(np.array([m.frequency_hz for m in phys], dtype=float),
+                                np.array([m.damping_ratio for m in phys], dtype=float))
+    operational = p.data.attributes.get("analysis") == "operational"
+    power = 0 if operational else synthesis.QUANTITY_POWER.get(p.data.quantity, 0)
+    return synthesis.fit_fixed_poles(p.omega, p.H, p.pole_map.to_model(lam), power)
+
+
+RESOLUTION_DECAY = float(np.log(100.0))
+"""Decay (in nepers, 1 % of the amplitude left) a mode's free response must reach within one
+record for its damping to be resolved: see :func:`resolution_warnings`."""
+
+
+def resolution_warnings(
+    modes: list[IdentifiedMode], frequency: np.ndarray, window_decay: float = 0.0
+) -> list[str]:
+    """One warning per physical mode whose damping the line spacing cannot resolve.
+
+    Lines ``df`` apart come from records of length ``1/df``. A mode's free response decays
+    as ``exp(-sigma t)`` with ``sigma = zeta 2 pi f`` (plus an exponential window's decay);
+    unless it has fallen to 1 % (``sigma / df >= ln 100``) by the end of the record, the
+    record cuts it off and the spectral estimate's leakage, not the structure, sets the
+    width of the peak. In terms of the half-power bandwidth ``B = 2 zeta f = sigma / pi``
+    the condition is ``B >= (ln 100 / pi) df = 1.47 df``: a peak narrower than about one
+    and a half lines.
+    """
+    f = np.asarray(frequency, dtype=float)
+    if f.size < 2:
+        return []
+    df = float(np.median(np.diff(f)))
+    out = []
+    for m in sorted((m for m in modes if m.physical), key=lambda m: m.frequency_hz):
+        if not (np.isfinite(m.frequency_hz) and np.isfinite(m.damping_ratio)):
+            continue
+        sigma = m.damping_ratio * 2.0 * np.pi * m.frequency_hz + window_decay
+        if sigma / df < RESOLUTION_DECAY:
+            out.append(
+                f"the mode at {m.frequency_hz:.4g} Hz: its half-power bandwidth"
+                f" (2 zeta f = {2 * m.damping_ratio * m.frequency_hz:.3g} Hz) is below"
+                f" {RESOLUTION_DECAY / np.pi:.2f} line spacings ({df:.3g} Hz): the damping"
+                " is not resolved by the frequency lines (the response outlasts the record);"
+                " treat its damping as an estimate of the order of the resolution only"
+            )
+    return out

@@ -40,6 +40,7 @@ from automodal.io.json_safe import json_safe, non_finite_warnings
 
 if TYPE_CHECKING:
     from automodal.core.matching import ModeTable
+    from automodal.core.stabilization import StabilizationPoles
     from automodal.frfdata import FRFData
     from automodal.result import IdentifiedMode, PoleTable, Result
 
@@ -272,6 +273,10 @@ class ReportInput:
     output_xyz : list of [x, y, z] or None
         Sensor coordinates.
     output_directions : list of str or None
+    mode_shape_nodes, mode_shape_directions : list or None
+        Node number and direction (``"+X"``...) of each mode-shape channel, when known.
+    mode_shape_xyz : list of [x, y, z] or None
+        Coordinates of each mode-shape channel, when known (for the figures).
     n_lines_analysed : int or None
     reciprocity : bool or None
         Whether the shapes are on the inputs (reciprocity).
@@ -297,6 +302,9 @@ class ReportInput:
     frequency_range_hz: list[Number] | None = None
     output_xyz: list[list[Number]] | None = None
     output_directions: list[str] | None = None
+    mode_shape_nodes: list[int] | None = None
+    mode_shape_directions: list[str] | None = None
+    mode_shape_xyz: list[list[Number]] | None = None
     n_lines_analysed: int | None = None
     reciprocity: bool | None = None
     mode_shape_channels: list[str] | None = None
@@ -305,8 +313,7 @@ class ReportInput:
     @classmethod
     def from_dict(cls, obj: Any, where: str = "input") -> ReportInput:
         f = _Fields(obj, where)
-        xyz = f.opt("output_xyz", _optional(lambda x, w: [
-            _numbers(row, f"{w}[{i}]", 3) for i, row in enumerate(_list(x, w))]))
+        xyz = f.opt("output_xyz", _optional(_xyz_rows))
         return cls(
             path=f.req("path", _optional(_str)),
             sha256=f.req("sha256", _optional(_str)),
@@ -321,6 +328,10 @@ class ReportInput:
             frequency_range_hz=f.opt("frequency_range_hz", _numbers),
             output_xyz=xyz,
             output_directions=f.opt("output_directions", _optional(_strings)),
+            mode_shape_nodes=f.opt("mode_shape_nodes", _optional(lambda x, w: [
+                _int(v, f"{w}[{i}]") for i, v in enumerate(_list(x, w))])),
+            mode_shape_directions=f.opt("mode_shape_directions", _optional(_strings)),
+            mode_shape_xyz=f.opt("mode_shape_xyz", _optional(_xyz_rows)),
             n_lines_analysed=f.opt("n_lines_analysed", _count),
             reciprocity=f.opt("reciprocity", _bool),
             mode_shape_channels=f.opt("mode_shape_channels", _strings),
@@ -343,6 +354,9 @@ class ReportInput:
         _put(out, "frequency_range_hz", self.frequency_range_hz)
         out["output_xyz"] = self.output_xyz
         out["output_directions"] = self.output_directions
+        _put(out, "mode_shape_nodes", self.mode_shape_nodes)
+        _put(out, "mode_shape_directions", self.mode_shape_directions)
+        _put(out, "mode_shape_xyz", self.mode_shape_xyz)
         _put(out, "n_lines_analysed", self.n_lines_analysed)
         _put(out, "reciprocity", self.reciprocity)
         _put(out, "mode_shape_channels", self.mode_shape_channels)
@@ -544,6 +558,8 @@ class ReportSummary:
     n_bootstrap: int | None
     runtime_s: Number
     n_reference_clusters: int | None = None
+    frf_fit_error: list[list[Number]] | None = None
+    """Normalised error of the FRF synthesis per channel (outputs x inputs), or ``None``."""
     extra: dict[str, Any] = field(default_factory=dict)
 
     @classmethod
@@ -555,6 +571,8 @@ class ReportSummary:
             n_bootstrap=f.req("n_bootstrap", _optional(_count)),
             runtime_s=f.req("runtime_s", _number),
             n_reference_clusters=f.opt("n_reference_clusters", _count),
+            frf_fit_error=f.opt("frf_fit_error", lambda x, w: [
+                _numbers(row, f"{w}[{i}]") for i, row in enumerate(_list(x, w))]),
             extra=f.extra(),
         )
 
@@ -562,6 +580,7 @@ class ReportSummary:
         out: dict[str, Any] = {"n_physical": self.n_physical, "n_clusters": self.n_clusters,
                                "n_bootstrap": self.n_bootstrap, "runtime_s": self.runtime_s}
         _put(out, "n_reference_clusters", self.n_reference_clusters)
+        _put(out, "frf_fit_error", self.frf_fit_error)
         out.update(self.extra)
         return out
 
@@ -633,10 +652,14 @@ class ReportArrays:
         for the Trashbox, ``replicate``).
     frf : (frequency, measured, synthesized) or dict or None
         The analysed band's FRFs.
+    stabilization : StabilizationPoles or dict or None
+        The poles of the order scan (``order``, ``frequency_hz``, ``damping_ratio``,
+        ``stability``), for the stabilization diagram.
     """
 
     poles: PoleTable | Mapping[str, np.ndarray] | None = None
     frf: FRFArrays | Mapping[str, np.ndarray] | None = None
+    stabilization: StabilizationPoles | Mapping[str, np.ndarray] | None = None
 
 
 # ------------------------------------------------------------------------------ the report
@@ -726,6 +749,7 @@ class Report:
         """
         all_warnings = [str(w) for w in result.warnings] + [str(w) for w in warnings]
         freq = np.asarray(data.frequency, dtype=float)
+        shape_names = [str(n) for n in (result.shape_channels or data.output_names)]
         modes = sorted(result.modes, key=frequency_key)
         raw = {
             "format": FORMAT_NAME,
@@ -748,10 +772,10 @@ class Report:
                                else np.asarray(data.output_xyz, float)),
                 "output_directions": (None if data.output_directions is None
                                       else [str(d) for d in data.output_directions]),
+                **shape_channel_geometry(data, shape_names, bool(result.reciprocity)),
                 "n_lines_analysed": int(result.n_lines),
                 "reciprocity": bool(result.reciprocity),
-                "mode_shape_channels": [str(n) for n in
-                                        (result.shape_channels or data.output_names)],
+                "mode_shape_channels": shape_names,
             },
             "settings": {**result.settings, "orders": result.orders},
             "modes": [_mode_content(m) for m in modes],
@@ -762,6 +786,8 @@ class Report:
                 "n_bootstrap": result.settings.get("n_bootstrap"),
                 "runtime_s": result.runtime_s,
                 "n_reference_clusters": result.n_clusters,
+                "frf_fit_error": (None if result.frf_fit_error is None
+                                  else np.asarray(result.frf_fit_error, float)),
             },
             "warnings": all_warnings,
         }
@@ -771,7 +797,8 @@ class Report:
         clean = json_safe(raw, "", non_finite)
         clean["warnings"].extend(non_finite_warnings(non_finite))
         report = cls.from_dict(clean)
-        report.arrays = ReportArrays(poles=result.poles, frf=result.frf_fit)
+        report.arrays = ReportArrays(poles=result.poles, frf=result.frf_fit,
+                                     stabilization=result.stabilization)
         return report
 
     # -------------------------------------------------------------------- dict form
@@ -930,6 +957,35 @@ class Report:
 
 
 # ------------------------------------------------------------------------------ helpers
+
+
+def _xyz_rows(x: Any, where: str) -> list[list[Number]]:
+    """A list of ``[x, y, z]`` rows."""
+    return [_numbers(row, f"{where}[{i}]", 3) for i, row in enumerate(_list(x, where))]
+
+
+def shape_channel_geometry(
+    data: FRFData, names: Sequence[str], reciprocal: bool
+) -> dict[str, Any]:
+    """``mode_shape_nodes``, ``mode_shape_directions`` and ``mode_shape_xyz`` of the
+    channels ``names`` (the inputs under reciprocity, else the outputs), each ``None``
+    unless the data give it for every one of them."""
+    side = "input" if reciprocal else "output"
+    channels = [str(n) for n in getattr(data, f"{side}_names")]
+    rows = [channels.index(n) if n in channels else -1 for n in names]
+    if -1 in rows:
+        return {"mode_shape_nodes": None, "mode_shape_directions": None,
+                "mode_shape_xyz": None}
+    nodes = getattr(data, f"{side}_nodes")
+    directions = getattr(data, f"{side}_directions")
+    xyz = None if reciprocal else data.output_xyz
+    return {
+        "mode_shape_nodes": None if nodes is None else [int(nodes[i]) for i in rows],
+        "mode_shape_directions": (None if directions is None
+                                  else [str(directions[i]) for i in rows]),
+        "mode_shape_xyz": (None if xyz is None
+                           else np.asarray(xyz, float)[rows].tolist()),
+    }
 
 
 def as_floats(values: Sequence[Any]) -> np.ndarray:

@@ -10,6 +10,7 @@ import numpy as np
 from automodal import __version__
 
 if TYPE_CHECKING:
+    from automodal.core.stabilization import StabilizationPoles
     from automodal.core.subspace import StateSpaceModel
 
 
@@ -135,10 +136,17 @@ class Result:
     n_lines: int = 0
     frf_fit: tuple[np.ndarray, np.ndarray, np.ndarray] | None = field(default=None, repr=False)
     """``(frequency_hz, measured, synthesized)`` over the analysed band, in the input's
-    orientation (lines x outputs x inputs); synthesized from the physical modes."""
+    orientation (lines x outputs x inputs); synthesized from the physical modes' poles
+    with residues and upper and lower residuals fitted by least squares."""
     noise: NoiseInfo | None = None
     """The noise model (source and level per output channel), ``None`` when the run did
     not use one (``weighting="envelope"``)."""
+    frf_fit_error: np.ndarray | None = field(default=None, repr=False)
+    """Normalised error ``sum |H - S|^2 / sum |H|^2`` of the synthesis per channel
+    (outputs x inputs, the input's orientation)."""
+    stabilization: StabilizationPoles | None = field(default=None, repr=False)
+    """The poles of the order scan's models and their stability, for the stabilization
+    diagram."""
 
     @property
     def physical_modes(self) -> list[IdentifiedMode]:

@@ -140,9 +140,10 @@ def test_reports_without_arrays_give_empty_entries(identified, tmp_path):
     result, data = identified
     write_report(tmp_path / "r.json", result, data, frf=(data.frequency, data.frf, data.frf))
     write_report(tmp_path / "plain.h5", result, data)
-    assert read_report_arrays(tmp_path / "r.json") == {"poles": {}, "frf": {}}
+    assert read_report_arrays(tmp_path / "r.json") == {"poles": {}, "frf": {},
+                                                       "stabilization": {}}
     plain = read_report_arrays(tmp_path / "plain.h5")
-    assert plain["frf"] == {} and plain["poles"]
+    assert plain["frf"] == {} and plain["poles"] and plain["stabilization"]
     with h5py.File(tmp_path / "plain.h5", "r") as f:
         assert "frf" not in f
 
@@ -216,6 +217,7 @@ def test_physicalness_bars(report):
 def test_mode_shapes_as_bars_and_on_the_geometry(report):
     no_xyz = copy.deepcopy(report)
     no_xyz["input"]["output_xyz"] = None
+    no_xyz["input"]["mode_shape_xyz"] = None
     fig = plots.mode_shapes(no_xyz)
     assert len(fig.axes) == n_physical(report)
     ax = fig.axes[0]
@@ -249,7 +251,8 @@ def test_save_figures_writes_the_standard_set(report_h5, tmp_path):
     for p in written:
         assert p.read_bytes()[:8] == PNG_MAGIC
     few = plots.save_figures(report, {"poles": {}, "frf": {}}, tmp_path / "few", dpi=50)
-    assert [p.name for p in few] == ["overview.png", "physicalness.png", "mode_shapes.png"]
+    assert [p.name for p in few] == ["overview.png", "physicalness.png", "mode_shapes.png",
+                                     "automac.png"]
     assert sorted(p.name for p in (tmp_path / "few").iterdir()) == sorted(p.name for p in few)
 
 

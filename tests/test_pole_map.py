@@ -34,6 +34,9 @@ def test_prewarped_lines_carry_discrete_poles_to_continuous_ones():
     mu = np.exp(s / FS)
     s_model = 2 * FS * (mu - 1) / (mu + 1)  # the bilinear image of mu with T = 1 / fs
     np.testing.assert_allclose(pm(s_model), s, rtol=1e-12)
+    np.testing.assert_allclose(pm.to_model(s), s_model, rtol=1e-12)
+    np.testing.assert_allclose(PoleMap(0.7, FS).to_model(PoleMap(0.7, FS)(s_model)), s_model,
+                               rtol=1e-12)
     # the line exp(j w / fs) is the bilinear image of j w' (w' prewarped)
     w = 2 * np.pi * np.array([0.5, 10.0, 100.0])
     wp = pm.model_omega(w)

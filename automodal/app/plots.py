@@ -32,6 +32,7 @@ if TYPE_CHECKING:
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure, SubFigure
 
+    from automodal.core.stabilization import StabilizationPoles
     from automodal.result import PoleTable
     from automodal.tracking import History
 
@@ -40,6 +41,7 @@ ReportLike = Report | Mapping[str, Any]
 
 __all__ = [
     "FIGURE_NAMES",
+    "automac",
     "frf_fit",
     "mode_shapes",
     "overview",
@@ -47,10 +49,12 @@ __all__ = [
     "pole_map",
     "save_figure",
     "save_figures",
+    "stabilization_diagram",
     "trend",
 ]
 
-FIGURE_NAMES = ("overview", "poles", "frf_fit", "physicalness", "mode_shapes")
+FIGURE_NAMES = ("overview", "stabilization", "poles", "frf_fit", "physicalness", "mode_shapes",
+                "automac")
 """Stems of the files :func:`save_figures` writes (each only when its data exist)."""
 
 MAX_FRF_CHANNELS = 4
@@ -66,10 +70,13 @@ TRASHBOX_COLOR = "0.78"
 PHYSICAL_COLOR = "tab:blue"
 NON_PHYSICAL_COLOR = "0.55"
 _QUANTITY_FRF = {
-    "displacement": "receptance",
-    "velocity": "mobility",
-    "acceleration": "accelerance",
+    "displacement": ("receptance", "m/N"),
+    "velocity": ("mobility", "(m/s)/N"),
+    "acceleration": ("accelerance", "(m/s²)/N"),
 }
+_QUANTITY_UNIT = {"displacement": "m", "velocity": "m/s", "acceleration": "m/s²"}
+LABEL_FONT = 7.0
+"""Font size (points) of the mode labels above the pole maps."""
 _DIRECTIONS = {"X": (1.0, 0.0, 0.0), "Y": (0.0, 1.0, 0.0), "Z": (0.0, 0.0, 1.0)}
 
 
@@ -130,13 +137,8 @@ def pole_map(
     ax.set_xlim(*_band(report, freq))
     ax.set_xlabel("frequency (Hz)")
     ax.set_ylabel("bootstrap replicate")
-    for mode in report.physical_modes:
-        color = colors.get(mode.cluster, PHYSICAL_COLOR)
-        ax.axvline(mode.frequency_hz, color=color, lw=0.6, ls=":", zorder=0)
-        ax.text(mode.frequency_hz, 0.985, _hz(mode.frequency_hz), color=color,
-                rotation=90, ha="center", va="top", fontsize=7, gid="mode-label",
-                transform=ax.get_xaxis_transform(),
-                bbox={"boxstyle": "square,pad=0.1", "fc": "white", "ec": "none", "alpha": 0.8})
+    modes = report.physical_modes
+    _label_modes(ax, fig, modes, [colors.get(m.cluster, PHYSICAL_COLOR) for m in modes])
     handles = _pole_legend_handles()
     parts = _frf_parts(frf)
     if parts is not None:
@@ -150,6 +152,138 @@ def pole_map(
         f" {summary.n_physical} physical, {n_trash} poles in the Trashbox",
         fontsize=10,
     )
+    return fig
+
+
+def stabilization_diagram(
+    report: ReportLike,
+    stabilization: StabilizationPoles | Mapping[str, np.ndarray],
+    frf: Mapping[str, np.ndarray] | Sequence[np.ndarray] | None = None,
+    *,
+    fig: Figure | SubFigure | None = None,
+) -> Figure | SubFigure:
+    """The stabilization diagram: the poles of the order scan's models against their order.
+
+    Parameters
+    ----------
+    report : Report or dict
+        The report (its physical modes, band and ``settings.orders``).
+    stabilization : StabilizationPoles or dict
+        ``order``, ``frequency_hz``, ``damping_ratio`` and ``stability`` (bits: 1
+        frequency, 2 damping, 4 MAC stable against the previous order; see
+        :mod:`automodal.core.stabilization` for the tolerances), as
+        ``read_report_arrays(path)["stabilization"]`` gives them.
+    frf : dict or sequence, optional
+        The FRFs: their magnitude summed over channels is drawn behind on a log y axis.
+    fig : Figure or SubFigure, optional
+        Where to draw; default a new figure.
+
+    Returns
+    -------
+    Figure or SubFigure
+        One axes (x: frequency in Hz, y: model order) with one marker style per stability
+        class (``gid`` ``"stable"``: frequency, damping and MAC; ``"stable-f-mac"``;
+        ``"stable-f"``; ``"new"``: none), the reported physical modes as labelled dotted
+        lines and the order the replicates used (``settings.orders.reference``) dashed.
+    """
+    from automodal.core import stabilization as st
+
+    report = Report.coerce(report)
+    fig = _canvas(fig, (11.0, 5.0))
+    ax = fig.add_subplot()
+    cols = _columns(stabilization, {"order": int, "frequency_hz": float, "stability": int})
+    order, freq, flags = cols["order"], cols["frequency_hz"], cols["stability"]
+    f_ok = (flags & st.STABLE_FREQUENCY) > 0
+    mac_ok = (flags & st.STABLE_SHAPE) > 0
+    classes = [
+        ("new", ~f_ok, {"marker": ".", "s": 6, "c": "0.7", "linewidths": 0}),
+        ("stable-f", f_ok & ~mac_ok, {"marker": "x", "s": 12, "c": "tab:orange",
+                                      "linewidths": 0.7}),
+        ("stable-f-mac", f_ok & mac_ok & (flags != st.STABLE_ALL),
+         {"marker": "+", "s": 22, "c": "tab:blue", "linewidths": 0.8}),
+        ("stable", flags == st.STABLE_ALL, {"marker": "o", "s": 14, "c": "tab:green",
+                                            "linewidths": 0, "zorder": 3}),
+    ]
+    handles = []
+    from matplotlib.lines import Line2D
+
+    labels = {"new": "new or unstable", "stable-f": f"f stable ({_pct(st.FREQUENCY_TOLERANCE)})",
+              "stable-f-mac": f"f and MAC stable (MAC ≥ {st.MAC_TOLERANCE:g})",
+              "stable": f"f, ζ ({_pct(st.DAMPING_TOLERANCE)}) and MAC stable"}
+    for gid, sel, style in classes:
+        ax.scatter(freq[sel], order[sel], gid=gid, **style)
+        handles.append(Line2D([], [], ls="", marker=style["marker"], color=style["c"],
+                              ms=5 if style["marker"] != "." else 6, label=labels[gid]))
+    top = int(order.max()) if order.size else 2
+    ax.set_ylim(0, POLE_MAP_HEADROOM * top + 2)
+    ax.set_xlim(*_band(report, freq))
+    ax.set_xlabel("frequency (Hz)")
+    ax.set_ylabel("model order")
+    chosen = (report.settings.values.get("orders") or {}).get("reference")
+    if isinstance(chosen, int) and chosen <= top:
+        ax.axhline(chosen, color="0.4", ls="--", lw=0.8, gid="reference-order")
+        handles.append(Line2D([], [], color="0.4", ls="--", lw=0.8,
+                              label=f"order of the replicates ({chosen})"))
+    modes = report.physical_modes
+    _label_modes(ax, fig, modes, mode_colors(len(modes)))
+    parts = _frf_parts(frf)
+    if parts is not None:
+        handles.append(_draw_frf_sum(ax, parts[0], parts[1]))
+    ax.legend(handles=handles, loc="lower left", bbox_to_anchor=(0.0, 1.0),
+              ncol=min(len(handles), 3), frameon=False, fontsize=8, borderaxespad=0.2)
+    n_stable = int(np.count_nonzero(flags == st.STABLE_ALL))
+    fig.suptitle(
+        f"Stabilization diagram: {order.size} poles of {np.unique(order).size} model orders,"
+        f" {n_stable} stable; {len(modes)} physical modes (dotted)", fontsize=10)
+    return fig
+
+
+def automac(report: ReportLike, *, fig: Figure | SubFigure | None = None
+            ) -> Figure | SubFigure:
+    """The AutoMAC matrix of the physical modes: MAC of every shape with every other.
+
+    Parameters
+    ----------
+    report : Report or dict
+        The report (its physical modes' shapes).
+    fig : Figure or SubFigure, optional
+        Where to draw; default a new figure.
+
+    Returns
+    -------
+    Figure or SubFigure
+        One axes: the matrix as an image (``gid="automac"``, values 0 to 1), each cell
+        with its value, ticks labelled with the modes' frequencies. Off-diagonal values
+        near 1 mean two modes the sensors cannot tell apart.
+    """
+    from automodal.core.modal import mac
+
+    report = Report.coerce(report)
+    modes = report.physical_modes
+    n = len(modes)
+    fig = _canvas(fig, (1.2 + 0.55 * max(n, 3), 0.9 + 0.55 * max(n, 3)))
+    ax = fig.add_subplot()
+    if not modes:
+        ax.set_axis_off()
+        ax.text(0.5, 0.5, "no physical mode", ha="center", va="center", transform=ax.transAxes)
+        return fig
+    shapes = np.column_stack([_shape(m) for m in modes])
+    matrix = np.real(mac(shapes, shapes))
+    image = ax.imshow(matrix, vmin=0.0, vmax=1.0, cmap="Blues", gid="automac")
+    ticks = [f"{m.frequency_hz:.4g}" for m in modes]
+    ax.set_xticks(range(n), ticks, rotation=90, fontsize=7)
+    ax.set_yticks(range(n), ticks, fontsize=7)
+    ax.set_xlabel("mode (Hz)")
+    ax.set_ylabel("mode (Hz)")
+    if n <= 25:
+        for i in range(n):
+            for j in range(n):
+                ax.text(j, i, f"{matrix[i, j]:.2f}", ha="center", va="center", fontsize=6,
+                        color="white" if matrix[i, j] > 0.6 else "0.2", gid="mac-value")
+    fig.colorbar(image, ax=ax, label="MAC", shrink=0.8)
+    off = matrix[~np.eye(n, dtype=bool)]
+    worst = f"; largest off-diagonal {off.max():.2f}" if off.size else ""
+    fig.suptitle(f"AutoMAC of the {n} physical modes{worst}", fontsize=10)
     return fig
 
 
@@ -192,9 +326,13 @@ def frf_fit(
     H = np.asarray(frf_measured, dtype=complex)
     S = None if frf_synth is None else np.asarray(frf_synth, dtype=complex)
     outputs, inputs = _channel_names(report, H.shape[1], H.shape[2])
-    for k, (i, j) in enumerate(_strongest_channels(H, max_channels)):
+    error = _fit_error(report, H, S)
+    shown = _strongest_channels(H, max_channels)
+    for k, (i, j) in enumerate(shown):
         color = f"C{k}"
         name = f"{outputs[i]}/{inputs[j]}" if H.shape[2] > 1 else outputs[i]
+        if error is not None and np.isfinite(error[i, j]):
+            name += f" (error {_pct_value(error[i, j])})"
         ax_mag.plot(f, np.abs(H[:, i, j]), color=color, lw=0.9, label=name, gid="measured")
         ax_ph.plot(*_wrapped_phase(f, H[:, i, j]), color=color, lw=0.9, gid="measured")
         if S is not None:
@@ -205,8 +343,7 @@ def frf_fit(
     for mode in report.physical_modes:
         for ax in (ax_mag, ax_ph):
             ax.axvline(mode.frequency_hz, color="0.75", lw=0.6, ls=":", zorder=0)
-    kind = _QUANTITY_FRF.get(report.input.quantity, "FRF")
-    ax_mag.set_ylabel(f"|H| ({kind})")
+    ax_mag.set_ylabel(_magnitude_label(report))
     ax_ph.set_ylabel("phase (°)")
     ax_ph.set_ylim(-190, 190)
     ax_ph.set_yticks([-180, -90, 0, 90, 180])
@@ -217,8 +354,16 @@ def frf_fit(
     handles += _style_handles(S is not None)
     ax_mag.legend(handles=handles, loc="lower left", bbox_to_anchor=(0.0, 1.0),
                   ncol=min(len(handles), 6), frameon=False, fontsize=8, borderaxespad=0.2)
-    what = "measured and synthesized from the physical modes" if S is not None else "measured"
-    fig.suptitle(f"FRF, {what}", fontsize=10)
+    what = ("measured (solid) and synthesized from the physical modes with upper and lower"
+            " residuals (dashed)" if S is not None else "measured")
+    n_all = H.shape[1] * H.shape[2]
+    which = (f"all {n_all} channels" if len(shown) == n_all
+             else f"{len(shown)} of {n_all} channels (the strongest)")
+    overall = ""
+    if error is not None and np.isfinite(error).any():
+        overall = f"; median normalised error {_pct_value(float(np.nanmedian(error)))}"
+    kind = "Half spectra" if _operational(report) else "FRF"
+    fig.suptitle(f"{kind}, {what}\n{which}{overall}", fontsize=10)
     return fig
 
 
@@ -304,7 +449,10 @@ def mode_shapes(
     modes = report.physical_modes
     inp = report.input
     directions = inp.output_directions
-    if xyz is None and inp.output_xyz is not None and not inp.reciprocity:
+    if xyz is None and inp.mode_shape_xyz is not None:
+        xyz = as_floats(inp.mode_shape_xyz)
+        directions = inp.mode_shape_directions
+    elif xyz is None and inp.output_xyz is not None and not inp.reciprocity:
         n_xyz = len(inp.output_xyz)
         rows = (report.shape_output_indices() if n_xyz == len(inp.output_names)
                 else list(range(n_xyz)))  # outputs the run kept
@@ -326,17 +474,23 @@ def mode_shapes(
         ax.text(0.5, 0.5, "no physical mode", ha="center", va="center", transform=ax.transAxes)
     for k, mode in enumerate(modes):
         shape = _shape(mode)
+        spread = np.nan_to_num(as_floats(mode.mode_shape_std), nan=0.0)
+        if spread.size != shape.size:
+            spread = np.zeros(shape.size)
         if geometry:
             ax = fig.add_subplot(n_rows, n_cols, k + 1, projection="3d")
-            _draw_geometry(ax, xyz, shape.real, _direction_vectors(directions, shape.size))
+            _draw_geometry(ax, xyz, shape.real, _direction_vectors(directions, shape.size),
+                           spread)
         else:
             ax = fig.add_subplot(n_rows, n_cols, k + 1)
-            _draw_shape_bars(ax, shape, _shape_channel_names(report, shape.size), k == 0)
+            _draw_shape_bars(ax, shape, _shape_channel_names(report, shape.size), k == 0,
+                             spread)
         zeta = mode.damping_ratio
         damping = f", ζ {100 * zeta:.2f} %" if zeta is not None else ""
         ax.set_title(f"mode {mode.id}: {_hz(mode.frequency_hz)}{damping}",
                      fontsize=8)
-    how = "real part on the sensor geometry" if geometry else "real part and magnitude by channel"
+    how = ("real part on the sensor geometry; thin bars: ± the bootstrap spread" if geometry
+           else "real part and magnitude by channel; error bars: ± the bootstrap spread")
     fig.suptitle(f"Shapes of the physical modes ({how})", fontsize=10)
     return fig
 
@@ -346,8 +500,9 @@ def overview(
     poles: PoleTable | Mapping[str, np.ndarray] | None = None,
     frf: Mapping[str, np.ndarray] | Sequence[np.ndarray] | None = None,
     xyz: np.ndarray | None = None,
+    stabilization: StabilizationPoles | Mapping[str, np.ndarray] | None = None,
 ) -> Figure:
-    """The four panels in one figure, each where its data exist.
+    """The panels in one figure, each where its data exist.
 
     Parameters
     ----------
@@ -360,22 +515,29 @@ def overview(
         without it there is no FRF panel (and no FRF behind the pole map).
     xyz : ndarray, optional
         Sensor coordinates for the mode shapes (default the report's).
+    stabilization : StabilizationPoles or dict, optional
+        The order scan's poles; without them there is no stabilization diagram.
 
     Returns
     -------
     Figure
-        From top to bottom: pole map, FRF fit beside the physicalness bars, mode shapes.
+        From top to bottom: stabilization diagram, pole map, FRF fit beside the
+        physicalness bars, mode shapes.
     """
     from matplotlib.figure import Figure
 
     report = Report.coerce(report)
     has_poles = poles is not None and _pole_columns(poles)["frequency_hz"].size > 0
+    has_stab = _has_stabilization(stabilization)
     parts = _frf_parts(frf)
     n_shapes = max(1, len(report.physical_modes))
     columns = min(n_shapes, OVERVIEW_SHAPE_COLUMNS)
-    heights = ([4.6] if has_poles else []) + [4.6] + [2.5 * math.ceil(n_shapes / columns) + 0.6]
+    heights = (([4.8] if has_stab else []) + ([4.6] if has_poles else []) + [4.6]
+               + [2.5 * math.ceil(n_shapes / columns) + 0.6])
     fig = Figure(figsize=(15.0, sum(heights)), layout="constrained")
     subs = list(np.ravel(fig.subfigures(len(heights), 1, height_ratios=heights)))
+    if has_stab:
+        stabilization_diagram(report, stabilization, parts, fig=subs.pop(0))
     if has_poles:
         pole_map(report, poles, parts, fig=subs.pop(0))
     middle = subs.pop(0)
@@ -501,8 +663,9 @@ def save_figures(
     report : Report or dict
         The report.
     arrays : dict, optional
-        ``{"poles": PoleTable or dict, "frf": dict or (f, measured, synthesized)}``, as
-        :func:`automodal.io.report.read_report_arrays` gives (either may be missing or
+        ``{"poles": PoleTable or dict, "frf": dict or (f, measured, synthesized),
+        "stabilization": StabilizationPoles or dict}``, as
+        :func:`automodal.io.report.read_report_arrays` gives (any may be missing or
         empty); default the report's own ``arrays``.
     folder : str or path-like
         Created when missing.
@@ -513,22 +676,29 @@ def save_figures(
     -------
     list of pathlib.Path
         The files written, in the order of :data:`FIGURE_NAMES`: ``overview.png``,
-        ``poles.png`` (with poles), ``frf_fit.png`` (with FRFs), ``physicalness.png`` and
-        ``mode_shapes.png``.
+        ``stabilization.png`` (with the order scan's poles), ``poles.png`` (with poles),
+        ``frf_fit.png`` (with FRFs), ``physicalness.png``, ``mode_shapes.png`` and
+        ``automac.png``.
     """
     report = Report.coerce(report)
     if arrays is None:
-        arrays = {"poles": report.arrays.poles, "frf": report.arrays.frf}
+        arrays = {"poles": report.arrays.poles, "frf": report.arrays.frf,
+                  "stabilization": report.arrays.stabilization}
     poles = arrays.get("poles")
     if poles is not None and _pole_columns(poles)["frequency_hz"].size == 0:
         poles = None
+    stab = arrays.get("stabilization")
+    stab = stab if _has_stabilization(stab) else None
     parts = _frf_parts(arrays.get("frf"))
     makers = {
-        "overview": lambda: overview(report, poles, parts),
+        "overview": lambda: overview(report, poles, parts, stabilization=stab),
+        "stabilization": (None if stab is None
+                          else lambda: stabilization_diagram(report, stab, parts)),
         "poles": None if poles is None else lambda: pole_map(report, poles, parts),
         "frf_fit": None if parts is None else lambda: frf_fit(report, *parts),
         "physicalness": lambda: physicalness_bars(report),
         "mode_shapes": lambda: mode_shapes(report),
+        "automac": lambda: automac(report),
     }
     out = Path(folder)
     out.mkdir(parents=True, exist_ok=True)
@@ -583,6 +753,32 @@ def _pole_legend_handles() -> list[Any]:
     ]
 
 
+def _label_modes(ax: Axes, fig: Figure | SubFigure, modes: list[ReportMode],
+                 colors: list[Any]) -> None:
+    """Each mode's frequency as a vertical label at the top of ``ax``, with a dotted line
+    at the mode; labels of close modes are moved apart (at least one label width) and
+    joined to their mode by a thin leader."""
+    if not modes:
+        return
+    lo, hi = ax.get_xlim()
+    f = np.array([m.frequency_hz for m in modes], dtype=float)
+    order = np.argsort(f)
+    width_pt = fig.bbox.width / fig.dpi * 72.0 * 0.85  # the axes' share of the figure
+    gap = 1.5 * LABEL_FONT / max(width_pt, 1.0)
+    at = spread_positions((f[order] - lo) / (hi - lo), gap)
+    for k, x in zip(order, at):
+        color = colors[k]
+        ax.axvline(f[k], color=color, lw=0.6, ls=":", zorder=0)
+        ax.annotate(
+            _hz(f[k]), xy=(f[k], 0.78), xycoords=ax.get_xaxis_transform(),
+            xytext=(x, 0.985), textcoords="axes fraction", color=color, rotation=90,
+            ha="center", va="top", fontsize=LABEL_FONT, gid="mode-label",
+            bbox={"boxstyle": "square,pad=0.1", "fc": "white", "ec": "none", "alpha": 0.8},
+            arrowprops={"arrowstyle": "-", "color": color, "lw": 0.5, "shrinkA": 0,
+                        "shrinkB": 0},
+        )
+
+
 def _style_handles(with_synth: bool) -> list[Any]:
     """Legend entries for the line styles of :func:`frf_fit`."""
     from matplotlib.lines import Line2D
@@ -593,12 +789,17 @@ def _style_handles(with_synth: bool) -> list[Any]:
     return handles
 
 
-def _draw_shape_bars(ax: Axes, shape: np.ndarray, names: list[str], legend: bool) -> None:
-    """Real part and magnitude of a shape as bars by channel."""
+def _draw_shape_bars(ax: Axes, shape: np.ndarray, names: list[str], legend: bool,
+                     spread: np.ndarray | None = None) -> None:
+    """Real part and magnitude of a shape as bars by channel, the spread as error bars on
+    the magnitude."""
     x = np.arange(shape.size)
     ax.bar(x - 0.2, shape.real, width=0.4, color=PHYSICAL_COLOR, label="real part", gid="real")
     ax.bar(x + 0.2, np.abs(shape), width=0.4, color="none", edgecolor="0.3", lw=0.8,
            label="magnitude", gid="magnitude")
+    if spread is not None and np.any(spread > 0):
+        ax.errorbar(x + 0.2, np.abs(shape), yerr=spread, fmt="none", ecolor="tab:red",
+                    elinewidth=0.9, capsize=1.5, gid="shape-spread", label="± spread")
     ax.axhline(0.0, color="0.3", lw=0.6)
     ax.set_ylim(-1.15, 1.15)
     ax.set_xticks(x)
@@ -608,12 +809,16 @@ def _draw_shape_bars(ax: Axes, shape: np.ndarray, names: list[str], legend: bool
         ax.legend(fontsize=6, loc="lower right", frameon=False)
 
 
-def _draw_geometry(ax: Any, xyz: np.ndarray, real: np.ndarray, directions: np.ndarray) -> None:
-    """Sensors displaced by the real part of a shape, in a 3-D axes without panes.
+def _draw_geometry(ax: Any, xyz: np.ndarray, real: np.ndarray, directions: np.ndarray,
+                   spread: np.ndarray | None = None) -> None:
+    """Sensors displaced by the real part of a shape, in a 3-D axes with its coordinates.
 
     Grey: the sensors at rest and the lines between nearest neighbours; stems from rest to
     the displaced sensor, coloured by the sign and size of the displacement (red out,
-    blue in); thin dark lines join the displaced sensors.
+    blue in); thin dark lines join the displaced sensors; thin red bars along each
+    sensor's direction show ± the shape's spread. The scale (coordinate units per unit of
+    shape: the largest entry is drawn as 30 % of the structure's span) is written in the
+    corner.
     """
     from matplotlib import colormaps
 
@@ -626,6 +831,10 @@ def _draw_geometry(ax: Any, xyz: np.ndarray, real: np.ndarray, directions: np.nd
         ax.plot(*moved[[a, b]].T, color="0.2", lw=0.8, alpha=0.7, gid="deformed")
     for p, q, r in zip(xyz, moved, real):
         ax.plot(*np.stack([p, q]).T, color=cmap(0.5 + 0.5 * float(np.clip(r, -1, 1))), lw=1.4)
+    if spread is not None and np.any(spread > 0):
+        for q, d, e in zip(moved, directions, spread):
+            ends = np.stack([q - scale * e * d, q + scale * e * d])
+            ax.plot(*ends.T, color="tab:red", lw=2.2, alpha=0.5, gid="shape-spread")
     ax.scatter(*xyz.T, s=5, color="0.55", depthshade=False)
     ax.scatter(*moved.T, s=22, c=real, cmap=cmap, vmin=-1, vmax=1, edgecolors="0.2",
                linewidths=0.4, depthshade=False, gid="sensors")
@@ -638,7 +847,16 @@ def _draw_geometry(ax: Any, xyz: np.ndarray, real: np.ndarray, directions: np.nd
     ax.set_box_aspect(np.maximum(hi - lo + 2 * pad, 0.3 * float(np.max(hi - lo + 2 * pad))))
     ax.set_proj_type("ortho")
     ax.view_init(elev=25, azim=-60)
-    ax.set_axis_off()
+    for axis, name in ((ax.xaxis, "x"), (ax.yaxis, "y"), (ax.zaxis, "z")):
+        axis.set_pane_color((1.0, 1.0, 1.0, 0.0))
+        axis.set_label_text(name, fontsize=7)
+    from matplotlib.ticker import MaxNLocator
+
+    for axis in (ax.xaxis, ax.yaxis, ax.zaxis):
+        axis.set_major_locator(MaxNLocator(4))
+    ax.tick_params(labelsize=6, pad=0)
+    ax.text2D(0.0, 0.0, f"shape × {scale:.3g}", transform=ax.transAxes, fontsize=6,
+              color="0.3", gid="shape-scale")
 
 
 def _neighbour_edges(xyz: np.ndarray, max_points: int = 500) -> list[tuple[int, int]]:
@@ -660,20 +878,28 @@ def _neighbour_edges(xyz: np.ndarray, max_points: int = 500) -> list[tuple[int, 
 
 def _pole_columns(poles: PoleTable | Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
     """Frequency, cluster and replicate of every pole, from a PoleTable or a dict."""
+    return _columns(poles, {"frequency_hz": float, "cluster": int, "replicate": int})
+
+
+def _columns(table: Any, names: Mapping[str, type]) -> dict[str, np.ndarray]:
+    """Columns of equal length from a dataclass of arrays or a dict (missing: empty)."""
 
     def column(name: str, dtype: type) -> np.ndarray:
-        value = poles.get(name) if isinstance(poles, Mapping) else getattr(poles, name, None)
+        value = table.get(name) if isinstance(table, Mapping) else getattr(table, name, None)
         return np.zeros(0, dtype) if value is None else np.asarray(value, dtype=dtype).ravel()
 
-    cols = {
-        "frequency_hz": column("frequency_hz", float),
-        "cluster": column("cluster", int),
-        "replicate": column("replicate", int),
-    }
-    n = cols["frequency_hz"].size
+    cols = {name: column(name, dtype) for name, dtype in names.items()}
+    n = next(iter(cols.values())).size
     if any(c.size != n for c in cols.values()):
-        raise ValueError("poles: frequency_hz, cluster and replicate differ in length")
+        raise ValueError(f"{', '.join(names)} differ in length")
     return cols
+
+
+def _has_stabilization(stab: Any) -> bool:
+    """Whether ``stab`` holds any pole of the order scan."""
+    if stab is None:
+        return False
+    return _columns(stab, {"order": int})["order"].size > 0
 
 
 def _frf_parts(
@@ -717,23 +943,53 @@ def _clusters(report: Report) -> dict[int, _Cluster]:
 
 
 def _cluster_colors(by_cluster: Mapping[int, _Cluster], present: np.ndarray) -> dict[int, Any]:
-    """A colour per cluster in frequency order: tab10 for physical clusters, light tab20 else."""
+    """A colour per cluster in frequency order: distinct strong colours for the physical
+    clusters (:func:`mode_colors`), light tab20 colours for the others."""
     from matplotlib import colormaps
 
-    strong = colormaps["tab10"].colors
     muted = colormaps["tab20"].colors[1::2]
     order = sorted((int(c) for c in present),
                    key=lambda c: by_cluster.get(c, _NO_CLUSTER).frequency_hz)
-    colors: dict[int, Any] = {}
-    n_phys = n_other = 0
-    for c in order:
-        if by_cluster.get(c, _NO_CLUSTER).physical:
-            colors[c] = strong[n_phys % len(strong)]
-            n_phys += 1
-        else:
-            colors[c] = muted[n_other % len(muted)]
-            n_other += 1
+    physical = [c for c in order if by_cluster.get(c, _NO_CLUSTER).physical]
+    colors: dict[int, Any] = dict(zip(physical, mode_colors(len(physical))))
+    others = [c for c in order if c not in colors]
+    colors.update({c: muted[k % len(muted)] for k, c in enumerate(others)})
     return colors
+
+
+def mode_colors(n: int) -> list[Any]:
+    """``n`` distinct colours: tab10 up to 10, else ``n`` evenly spaced along the turbo
+    map (its pale ends left out), so that no two modes share a colour."""
+    from matplotlib import colormaps
+
+    if n <= 10:
+        return list(colormaps["tab10"].colors[:n])
+    return [colormaps["turbo"](x) for x in np.linspace(0.05, 0.92, n)]
+
+
+def spread_positions(x: np.ndarray, gap: float, lo: float = 0.0, hi: float = 1.0) -> np.ndarray:
+    """Positions as near to the sorted ``x`` as possible, at least ``gap`` apart, in
+    ``[lo, hi]`` (labels that must not overlap).
+
+    Groups of labels that would overlap are spread evenly around their mean; the groups
+    merge until no two are closer than ``gap``.
+    """
+    x = np.asarray(x, dtype=float)
+    if x.size == 0:
+        return x
+    gap = min(gap, (hi - lo) / max(x.size, 1))
+    groups: list[list[float]] = []  # [start position, count, sum of targets]
+    for xi in np.sort(x):
+        groups.append([xi, 1, xi])
+        while len(groups) > 1 and groups[-2][0] + groups[-2][1] * gap > groups[-1][0]:
+            b = groups.pop()
+            a = groups[-1]
+            a[1] += b[1]
+            a[2] += b[2]
+            a[0] = a[2] / a[1] - (a[1] - 1) * gap / 2.0
+        g = groups[-1]
+        g[0] = min(max(g[0], lo), hi - (g[1] - 1) * gap)
+    return np.concatenate([g[0] + gap * np.arange(g[1]) for g in groups])
 
 
 def _shape(mode: ReportMode) -> np.ndarray:
@@ -802,6 +1058,45 @@ def _band(report: Report, freq: np.ndarray) -> tuple[float, float]:
     if finite.size and finite.max() > finite.min():
         return float(finite.min()), float(finite.max())
     return 0.0, 1.0
+
+
+def _pct_value(x: float) -> str:
+    """A fraction as a percentage with two significant digits, e.g. ``1.2 %``."""
+    return f"{100 * x:.2g} %"
+
+
+def _operational(report: Report) -> bool:
+    """Whether the report's data were output-only half spectra."""
+    return report.input.attributes.get("analysis") == "operational"
+
+
+def _magnitude_label(report: Report) -> str:
+    """The magnitude axis label with the quantity's name and SI units, e.g.
+    ``|H| accelerance ((m/s²)/N)``; half spectra of output-only data say so."""
+    quantity = report.input.quantity
+    if _operational(report):
+        unit = _QUANTITY_UNIT.get(quantity)
+        return f"|G| half spectrum ({unit})²" if unit else "|G| half spectrum"
+    kind, unit = _QUANTITY_FRF.get(quantity, ("FRF", ""))
+    return f"|H| {kind} ({unit})" if unit else f"|H| {kind}"
+
+
+def _fit_error(report: Report, H: np.ndarray, S: np.ndarray | None) -> np.ndarray | None:
+    """The normalised error of the synthesis per channel: the report's (over every line),
+    else computed from the arrays drawn, else ``None``."""
+    from automodal.core.synthesis import normalised_error
+
+    stored = report.summary.frf_fit_error
+    if stored is not None:
+        e = as_floats([x for row in stored for x in row])
+        if e.size == H.shape[1] * H.shape[2]:
+            return e.reshape(H.shape[1], H.shape[2])
+    return None if S is None else normalised_error(H, S)
+
+
+def _pct(x: float) -> str:
+    """A fraction as a percentage, e.g. ``1 %``."""
+    return f"{100 * x:g} %"
 
 
 def _hz(f: float) -> str:

@@ -21,6 +21,7 @@ from automodal.errors import InputError
 if TYPE_CHECKING:
     from automodal.app.monitoring import MonitoringResult
     from automodal.frfdata import FRFData
+    from automodal.io.geometry import Geometry
     from automodal.report_model import Report
     from automodal.result import Result
     from automodal.settings import Settings
@@ -99,7 +100,8 @@ def save(out: str | os.PathLike[str], report: Report, result: Result) -> Path:
     from automodal.io.report import save_report
 
     try:
-        save_report(out, report, result.poles, frf=result.frf_fit)
+        save_report(out, report, result.poles, frf=result.frf_fit,
+                    stabilization=result.stabilization)
     except OSError as exc:
         reason = exc.strerror or " ".join(str(exc).split()) or type(exc).__name__
         raise InputError(f"cannot write the report: {reason}", os.fspath(out)) from exc
@@ -115,6 +117,7 @@ def run_file(
     thresholds: Thresholds | None = None,
     progress: Callable[[int], None] | None = None,
     sha256: str | None = None,
+    geometry: Geometry | None = None,
 ) -> RunOutcome:
     """Identify one input file and write its reports.
 
@@ -137,6 +140,9 @@ def run_file(
     sha256 : str, optional
         The SHA-256 of the input when the caller has hashed it already (see
         :func:`automodal.io.report.build_report`); default: hashed here.
+    geometry : Geometry, optional
+        Where the shape channels are (``--geometry``): sets the report's
+        ``input.mode_shape_nodes``, ``mode_shape_directions`` and ``mode_shape_xyz``.
 
     Returns
     -------
@@ -154,6 +160,10 @@ def run_file(
     data = read_input(path)
     result = identify(data, settings, progress=progress)
     report = build_report(result, data, input_path=path, sha256=sha256)
+    if geometry is not None:
+        from automodal.io.geometry import apply_to_report
+
+        apply_to_report(report, geometry)
     check = None
     if baseline is not None:
         from automodal.app.monitoring import attach_monitoring

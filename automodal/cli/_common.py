@@ -50,3 +50,29 @@ def exit_on_error(debug: bool = False) -> Iterator[None]:
 def debug_option(func: Callable) -> Callable:
     """The ``--debug`` flag: show tracebacks."""
     return click.option("--debug", is_flag=True, help="Show a traceback on errors.")(func)
+
+
+def test_date_option(func: Callable) -> Callable:
+    """``--test-date ISO``: the date of the test, stored as the file's ``test_date``."""
+    return click.option(
+        "--test-date", "test_date", default=None, metavar="ISO",
+        help="Date of the test, ISO 8601 (2024-05-01 or 2024-05-01T10:30:00+02:00);"
+             " stored as the attribute test_date, which orders reports in time when"
+             " monitoring.")(func)
+
+
+def checked_test_date(text: str) -> str:
+    """``text`` as a UTC ISO 8601 time (``YYYY-MM-DDTHH:MM:SSZ``).
+
+    Raises
+    ------
+    click.BadParameter
+        If it is not an ISO 8601 date or time.
+    """
+    from automodal.report_model import parse_time
+
+    when = parse_time(text)
+    if when is None:
+        raise click.BadParameter(f"{text!r} is not an ISO 8601 date or time, such as"
+                                 " 2024-05-01 or 2024-05-01T10:30:00Z", param_hint="--test-date")
+    return when

@@ -7,7 +7,12 @@ from typing import TYPE_CHECKING
 
 import click
 
-from automodal.cli._common import debug_option, exit_on_error
+from automodal.cli._common import (
+    checked_test_date,
+    debug_option,
+    exit_on_error,
+    test_date_option,
+)
 from automodal.errors import InputError
 
 if TYPE_CHECKING:
@@ -48,13 +53,19 @@ def summary(output: Path, data: FRFData) -> str:
     epilog="""\b
 Examples:
   automodal convert measurement.uff measurement.h5
-  automodal convert frfs.csv test.h5 --quiet""",
+  automodal convert frfs.csv test.h5 --quiet
+  automodal convert beam.uff beam.h5 --geometry nodes.csv --test-date 2024-05-01""",
 )
 @click.argument("input_path", metavar="INPUT", type=click.Path())
 @click.argument("output", metavar="OUTPUT.h5", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--geometry", metavar="CSV", type=click.Path(),
+              help="Node coordinates and channel nodes/directions (docs/cli.md, 'Geometry'):"
+                   " written as the outputs' nodes, directions and xyz.")
+@test_date_option
 @click.option("-q", "--quiet", is_flag=True, help="Print nothing on success.")
 @debug_option
-def convert(input_path: str, output: Path, quiet: bool, debug: bool) -> None:
+def convert(input_path: str, output: Path, geometry: str | None, test_date: str | None,
+            quiet: bool, debug: bool) -> None:
     """Convert INPUT to an automodal FRF file OUTPUT.h5 (docs/frf-file.md).
 
     INPUT is a UFF/UNV file with dataset 58 FRFs (.uff, .unv), a CSV or text table
@@ -63,6 +74,7 @@ def convert(input_path: str, output: Path, quiet: bool, debug: bool) -> None:
     is replaced only once complete. Prints one summary line unless --quiet.
     """
     with exit_on_error(debug):
+        when = None if test_date is None else checked_test_date(test_date)
         if output.suffix.lower() not in OUTPUT_SUFFIXES:
             raise InputError("the output must be an FRF file with suffix .h5 or .hdf5", output)
         if not output.parent.is_dir():
@@ -74,6 +86,12 @@ def convert(input_path: str, output: Path, quiet: bool, debug: bool) -> None:
         from automodal.io.readers import read_any
 
         data = as_frfdata(read_any(input_path))
+        if geometry:
+            from automodal.io.geometry import apply_to_data, read_geometry
+
+            data = apply_to_data(data, read_geometry(geometry))
+        if when is not None:
+            data.attributes["test_date"] = when
         if isinstance(data.attributes.get("time_analysis"), dict):  # HDF5 has no dict type
             import json
 

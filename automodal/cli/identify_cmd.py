@@ -148,6 +148,9 @@ def _run_batch(input_path: str, outputs: tuple[str, ...], settings: Settings,
               "Never changes the result.")
 @click.option("--plot", "plot_dir", type=click.Path(file_okay=False), default=None, metavar="DIR",
               help="Also write the standard figures (PNG) into DIR.")
+@click.option("--geometry", "geometry_path", type=click.Path(), default=None, metavar="CSV",
+              help="Node coordinates and channel nodes/directions (docs/cli.md, 'Geometry')"
+              " for the shape figures and automodal export.")
 @click.option("--baseline", "baseline_path", type=click.Path(), default=None, metavar="REPORT",
               help="Check the modes against a baseline report: exit 3 when a mode moved, "
               "changed shape or is missing (a 'monitoring' block goes into the report).")
@@ -169,6 +172,7 @@ def identify(
     max_order: int | None,
     jobs: int | None,
     plot_dir: str | None,
+    geometry_path: str | None,
     baseline_path: str | None,
     force: bool,
     report_format: str,
@@ -214,6 +218,11 @@ def identify(
         if not batch:
             _check_outputs(outputs)
         baseline = read_baseline(baseline_path) if baseline_path else None
+        geometry = None
+        if geometry_path:
+            from automodal.io.geometry import read_geometry
+
+            geometry = read_geometry(geometry_path)
         if batch:
             sys.exit(_run_batch(input_path, outputs, settings, baseline, baseline_path,
                                 report_format, force, jobs, dask_scheduler, as_json, quiet))
@@ -222,7 +231,7 @@ def identify(
 
         def run(progress: Callable[[int], None] | None = None) -> RunOutcome:
             return run_file(input_path, settings, outputs, baseline, baseline_path,
-                            progress=progress)
+                            progress=progress, geometry=geometry)
 
         if not quiet and sys.stderr.isatty():
             with click.progressbar(length=n_bootstrap, label="bootstrap", file=sys.stderr) as bar:

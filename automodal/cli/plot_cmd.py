@@ -45,40 +45,61 @@ def _missing(report_path: str, arrays: ReportArrays) -> str | None:
 
 @click.command()
 @click.argument("report_path", metavar="REPORT", type=click.Path())
-@click.option("-o", "--output", default=None, metavar="FIGURE",
-              help="Figure file, .png, .svg or .pdf (default: <REPORT stem>.png beside REPORT).")
+@click.option("-o", "--output", default=None, metavar="FIGURE|DIR",
+              help="Figure file, .png, .svg or .pdf (default: <REPORT stem>.png beside REPORT);"
+                   " a folder (existing, or a name without suffix) gets the standard set of"
+                   " figures as PNG files.")
+@click.option("--geometry", metavar="CSV", type=click.Path(),
+              help="Node coordinates and channel nodes/directions (docs/cli.md, 'Geometry')"
+                   " for the mode-shape figure.")
 @click.option("--dpi", type=click.IntRange(20, 1200), default=150, show_default=True,
               help="Resolution of a PNG.")
 @debug_option
-def plot(report_path: str, output: str | None, dpi: int, debug: bool) -> None:
+def plot(report_path: str, output: str | None, geometry: str | None, dpi: int,
+         debug: bool) -> None:
     """Draw the overview figure of REPORT (a .json or .h5 report of automodal identify),
     or the trends of a history file of automodal track.
 
-    The figure holds the bootstrap poles by cluster with the Trashbox over the FRF, the
+    The figure holds the stabilization diagram (the order scan's poles against model
+    order, stable ones marked), the bootstrap poles by cluster with the Trashbox over the FRF, the
     measured FRFs against those synthesized from the physical modes, the physicalness of
     every cluster, and the physical mode shapes (on the sensor geometry when it is known).
     An HDF5 report holds everything; a JSON report has no poles nor FRFs, and only the
     physicalness and the shapes are drawn. A history file (automodal track) gives the
     frequency change and damping of each tracked mode over time with bootstrap bands,
-    flagged points ringed in red. Prints the figure's path.
+    flagged points ringed in red. With -o DIR (a folder) the standard set is written
+    instead: overview, stabilization, poles, frf_fit, physicalness, mode_shapes and automac
+    (.png). Prints the path of each figure written.
 
     \b
     Examples:
       automodal plot report.h5
       automodal plot report.h5 -o modes.svg
+      automodal plot report.h5 -o figures/ --geometry nodes.csv
       automodal plot history.h5 -o trends.png
     """
     with exit_on_error(debug):
         out = Path(output) if output else default_output(report_path)
-        _check_output(out)
+        folder = out.is_dir() or (output is not None and not out.suffix)
+        if folder and not out.parent.is_dir():
+            raise InputError("the folder's parent does not exist", str(out))
+        if not folder:
+            _check_output(out)
         from automodal.io.history import is_history_file
 
         if is_history_file(report_path):
+            if folder:
+                raise InputError("a history file gives one figure: name a .png, .svg or"
+                                 " .pdf file with -o", str(out))
             _plot_history(report_path, out, dpi)
             return
         from automodal.io.report import load_report
 
         report = load_report(report_path, arrays=True)
+        if geometry:
+            from automodal.io.geometry import apply_to_report, read_geometry
+
+            apply_to_report(report, read_geometry(geometry))
         note = _missing(report_path, report.arrays)
         if note:
             click.echo(note, err=True)
@@ -86,9 +107,14 @@ def plot(report_path: str, output: str | None, dpi: int, debug: bool) -> None:
         import matplotlib
 
         matplotlib.use("Agg")
-        from automodal.app.plots import overview, save_figure
+        from automodal.app.plots import overview, save_figure, save_figures
 
-        fig = overview(report, report.arrays.poles, report.arrays.frf)
+        if folder:
+            for path in save_figures(report, None, out, dpi):
+                click.echo(str(path))
+            return
+        fig = overview(report, report.arrays.poles, report.arrays.frf,
+                       stabilization=report.arrays.stabilization)
         save_figure(fig, out, dpi=dpi)
         click.echo(str(out))
 

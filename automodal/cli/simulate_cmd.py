@@ -7,7 +7,12 @@ from pathlib import Path
 import click
 import numpy as np
 
-from automodal.cli._common import debug_option, exit_on_error
+from automodal.cli._common import (
+    checked_test_date,
+    debug_option,
+    exit_on_error,
+    test_date_option,
+)
 from automodal.errors import InputError
 from automodal.frfdata import QUANTITIES
 
@@ -106,13 +111,14 @@ Examples:
               help="Write complex Gaussian noise with no structure (a test with no mode).")
 @click.option("--seed", type=click.IntRange(min=0, max=2**63 - 1), default=None,
               help="Random seed; the one used is stored in both files.  [default: random]")
+@test_date_option
 @click.option("--quiet", "-q", is_flag=True, help="Print nothing on success.")
 @debug_option
 def simulate(output: Path, system_kind: str, dof: int, grid_size: tuple[int, int],
              symmetric: bool, outputs: str, inputs: str | None, quantity: str, damping: str,
              zeta: float, noise: float, noise_kind: str, lines: int, fmin: float | None,
-             fmax: float | None, pure_noise: bool, seed: int | None, quiet: bool,
-             debug: bool) -> None:
+             fmax: float | None, pure_noise: bool, seed: int | None, test_date: str | None,
+             quiet: bool, debug: bool) -> None:
     """Write a synthetic test of a known system to OUTPUT.h5, with its exact modes.
 
     The FRF file (docs/frf-file.md) gets the chosen responses per unit force with
@@ -127,6 +133,7 @@ def simulate(output: Path, system_kind: str, dof: int, grid_size: tuple[int, int
     with exit_on_error(debug):
         if not output.parent.is_dir():
             raise InputError("the folder to write into does not exist", output)
+        when = None if test_date is None else checked_test_date(test_date)
         if system_kind == "chain":
             system = sim.chain(dof)
         else:
@@ -144,6 +151,8 @@ def simulate(output: Path, system_kind: str, dof: int, grid_size: tuple[int, int
         data, modes = sim.simulate_test(system, out, inp, freq, quantity, noise, seed,
                                         noise_kind, pure_noise)
         seed_used = int(data.attributes["seed"])
+        if when is not None:
+            data.attributes["test_date"] = when
 
         mpath = modes_path(output)
         settings = {

@@ -8,7 +8,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -113,6 +113,7 @@ def misfit_scan(
     variance: np.ndarray | None = None,
     params: int = 0,
     z_alarm: float = 0.0,
+    models: list[tuple[int, np.ndarray, np.ndarray]] | None = None,
 ) -> tuple[np.ndarray, np.ndarray] | tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Misfit ``MC(n)`` of the models of each order, from one observability subspace.
 
@@ -147,6 +148,9 @@ def misfit_scan(
     params, z_alarm : int, float
         Parameters per mode and the false-alarm quantile of the order test (with
         ``variance``, for the early stop).
+    models : list, optional
+        When given, ``(n, A, C)`` of every evaluated order is appended to it (the poles and
+        shapes of a stabilization diagram, :mod:`automodal.core.stabilization`).
 
     Returns
     -------
@@ -168,6 +172,8 @@ def misfit_scan(
     chi2: list[float] = []
     for i, n in enumerate(orders):
         A, C = subspace.shift_invariance(O[:, :n], ny, basis)
+        if models is not None:
+            models.append((int(n), A, C))
         B, D = subspace.estimate_bd(z[sub], H[sub], A, C, weights=w_sub)
         Hm = subspace.frequency_response(A, B, C, D, z[sub])
         out.append(log_misfit(Hm, H[sub]))
@@ -322,6 +328,7 @@ def scan(
     variance: np.ndarray | None = None,
     params: int = 0,
     z_alarm: float = 0.0,
+    models: list[tuple[int, np.ndarray, np.ndarray]] | None = None,
 ):
     """The misfit scan, in stages.
 
@@ -333,7 +340,8 @@ def scan(
 
     With ``variance`` (the noise of ``H``), a stage is extended while its significant
     order (:func:`significant_order`) lies in the last third of it, and the whitened
-    residual is returned too.
+    residual is returned too. ``models`` (optional) receives ``(n, A, C)`` of every order
+    of the last stage (see :func:`misfit_scan`).
 
     Returns
     -------
@@ -349,9 +357,12 @@ def scan(
     while True:
         planned = scan_orders(max(4, stage))
         basis = subspace.row_basis(z, subspace.scan_block_rows(int(planned[-1]), ny))
+        if models is not None:
+            models.clear()  # only the last stage's models are kept
         if variance is None:
             orders, misfit = misfit_scan(
-                z, H, planned, basis, weights=weights, stop_after=2 * n_peaks + 40
+                z, H, planned, basis, weights=weights, stop_after=2 * n_peaks + 40,
+                models=models,
             )
             if (orders.size < planned.size or stage >= n_max
                     or not still_falling(orders, misfit)):
@@ -359,7 +370,7 @@ def scan(
         else:
             orders, misfit, chi2 = misfit_scan(
                 z, H, planned, basis, weights=weights, stop_after=2 * n_peaks + 40,
-                variance=variance, params=params, z_alarm=z_alarm,
+                variance=variance, params=params, z_alarm=z_alarm, models=models,
             )
             n0 = significant_order(orders, chi2, params, z_alarm, ORDER_TOLERANCE)
             if (orders.size < planned.size or stage >= n_max
@@ -385,6 +396,13 @@ class OrderChoice:
         The excessive order of the reference model and the replicates.
     limit : int
         Largest order the data (and ``max_order``) allowed.
+    chi2 : ndarray or None
+        The whitened residual per scanned order (with a noise model).
+    rule : str
+        ``"floor"`` or ``"significance"``: how ``n0`` was chosen.
+    models : list of (n, A, C)
+        The discrete-time state and output matrices of every scanned order (of the scan
+        that chose ``n0``), for the stabilization diagram.
     """
 
     scanned: np.ndarray
@@ -394,6 +412,7 @@ class OrderChoice:
     limit: int
     chi2: np.ndarray | None = None
     rule: str = "floor"
+    models: list[tuple[int, np.ndarray, np.ndarray]] = field(default_factory=list)
 
 
 SIGNIFICANT_EXCESS = 2.0
@@ -467,15 +486,16 @@ def select_orders(
     n_scan = min(n_limit, MAX_SCAN_ORDER)
     chi2 = None
     rule = "floor" if variance is None else "significance"
+    models: list[tuple[int, np.ndarray, np.ndarray]] = []
     if variance is None:
-        orders, misfit = scan(z, H, weights, n_scan, count_peaks(H))
+        orders, misfit = scan(z, H, weights, n_scan, count_peaks(H), models=models)
         n0 = order_at_floor(orders, misfit)
     else:
         from automodal.core.whitening import mode_parameters, test_variance
 
         p = mode_parameters(ny, nu)
         orders, misfit, chi2 = scan(z, H, weights, n_scan, count_peaks(H),
-                                    test_variance(H, variance), p, z_alarm)
+                                    test_variance(H, variance), p, z_alarm, models=models)
         n0 = significant_order(orders, chi2, p, z_alarm, ORDER_TOLERANCE)
         if n0 == orders[0] and not _ever_better(chi2):
             # no scanned model fits the whitened data better than the smallest one: the
@@ -489,7 +509,7 @@ def select_orders(
     factor = 3.0 if rule == "floor" else SIGNIFICANT_EXCESS
     return OrderChoice(scanned=orders, misfit=misfit, n0=n0,
                        reference=excessive_order(n0, cap, factor), limit=n_limit, chi2=chi2,
-                       rule=rule)
+                       rule=rule, models=models)
 
 
 def _ever_better(chi2: np.ndarray) -> bool:

@@ -88,6 +88,14 @@ class PoleMap:
             poles = two_fs * np.arctanh(poles / two_fs)
         return poles + self.shift
 
+    def to_model(self, poles: np.ndarray) -> np.ndarray:
+        """The model's poles of the structure's ``poles``: the inverse of the map."""
+        poles = np.asarray(poles) - self.shift
+        if self.sample_rate is not None:
+            two_fs = 2.0 * self.sample_rate
+            poles = two_fs * np.tanh(poles / two_fs)
+        return poles
+
     def derivative(self, poles: np.ndarray) -> np.ndarray:
         """``ds / ds'`` at the model's ``poles`` (complex, for the intervals)."""
         poles = np.asarray(poles, dtype=complex)

@@ -22,7 +22,7 @@ import os
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import h5py
 import numpy as np
@@ -43,6 +43,9 @@ from automodal.report_model import (
     utc_now,
 )
 from automodal.result import PoleTable, Result
+
+if TYPE_CHECKING:
+    from automodal.core.stabilization import StabilizationPoles
 
 __all__ = [
     "FORMAT_NAME",
@@ -191,7 +194,8 @@ def write_report(
     :func:`save_report` for each.
     """
     _format_of(path)
-    save_report(path, build_report(result, data, input_path), result.poles, frf)
+    save_report(path, build_report(result, data, input_path), result.poles, frf,
+                result.stabilization)
 
 
 def save_report(
@@ -199,6 +203,7 @@ def save_report(
     report: Report | Mapping[str, Any],
     poles: PoleTable | None = None,
     frf: FRFArrays | None = None,
+    stabilization: StabilizationPoles | None = None,
 ) -> None:
     """Write a report, as JSON or HDF5, atomically.
 
@@ -217,6 +222,9 @@ def save_report(
         ``(n, n_outputs, n_inputs)``; ``synthesized`` may be ``None`` and is then left
         out). Lines outside the report's ``input.band_hz`` are dropped, and more than
         :data:`MAX_FRF_LINES` lines are decimated (every k-th line) to at most that many.
+    stabilization : StabilizationPoles, optional
+        The order scan's poles, written under ``/stabilization`` of an HDF5 report
+        (ignored for JSON).
 
     Raises
     ------
@@ -235,7 +243,7 @@ def save_report(
     model = Report.coerce(report)
     arrays = None if frf is None else _frf_for_report(model, frf)
     with atomic_path(path) as tmp:
-        _write_hdf5(tmp, model, poles, arrays)
+        _write_hdf5(tmp, model, poles, arrays, stabilization)
 
 
 def _format_of(path: str | os.PathLike[str]) -> str:
@@ -291,7 +299,11 @@ def _frf_for_report(report: Report, frf: FRFArrays) -> dict[str, np.ndarray]:
 
 
 def _write_hdf5(
-    path: Path, report: Report, poles: PoleTable | None, frf: dict[str, np.ndarray] | None = None
+    path: Path,
+    report: Report,
+    poles: PoleTable | None,
+    frf: dict[str, np.ndarray] | None = None,
+    stabilization: StabilizationPoles | None = None,
 ) -> None:
     """The report in the HDF5 layout of ``docs/report.md``, plus its JSON text in
     ``report_json``."""
@@ -310,6 +322,8 @@ def _write_hdf5(
         _write_modes(f.create_group("modes"), report.modes, len(report.shape_channels))
         if poles is not None:
             _write_poles(f.create_group("poles"), poles)
+        if stabilization is not None:
+            _write_stabilization(f.create_group("stabilization"), stabilization)
         if frf is not None:
             group = f.create_group("frf")
             group.attrs["description"] = (
@@ -367,6 +381,22 @@ def _write_poles(group: h5py.Group, poles: PoleTable) -> None:
     group.create_dataset("replicate", data=np.asarray(poles.replicate, dtype=np.int64))
 
 
+def _write_stabilization(group: h5py.Group, poles: StabilizationPoles) -> None:
+    """The order scan's poles: order, frequency, damping and stability bits."""
+    from automodal.core import stabilization as st
+
+    group.attrs["description"] = (
+        "poles of the order scan's models; stability bits against the previous order:"
+        " 1 frequency, 2 damping, 4 shape (MAC)")
+    group.attrs["frequency_tolerance"] = st.FREQUENCY_TOLERANCE
+    group.attrs["damping_tolerance"] = st.DAMPING_TOLERANCE
+    group.attrs["mac_tolerance"] = st.MAC_TOLERANCE
+    group.create_dataset("order", data=np.asarray(poles.order, dtype=np.int64))
+    group.create_dataset("frequency_hz", data=np.asarray(poles.frequency_hz, dtype=float))
+    group.create_dataset("damping_ratio", data=np.asarray(poles.damping_ratio, dtype=float))
+    group.create_dataset("stability", data=np.asarray(poles.stability, dtype=np.int64))
+
+
 # ------------------------------------------------------------------------------ reading
 
 
@@ -419,7 +449,8 @@ def load_report(path: str | os.PathLike[str], arrays: bool = False) -> Report:
         raise InputError(exc.problem, os.fspath(path)) from None
     if arrays:
         found = read_report_arrays(path)
-        report.arrays = ReportArrays(poles=found["poles"] or None, frf=found["frf"] or None)
+        report.arrays = ReportArrays(poles=found["poles"] or None, frf=found["frf"] or None,
+                                     stabilization=found["stabilization"] or None)
     return report
 
 
@@ -446,7 +477,7 @@ def read_report_arrays(path: str | os.PathLike[str]) -> dict[str, dict[str, np.n
         If the file is missing or unreadable, or an HDF5 file that is not an automodal
         report. The message names the file.
     """
-    arrays: dict[str, dict[str, np.ndarray]] = {"poles": {}, "frf": {}}
+    arrays: dict[str, dict[str, np.ndarray]] = {"poles": {}, "frf": {}, "stabilization": {}}
     with _reading(path) as p:
         if not _is_hdf5_report(p):
             return arrays
