@@ -63,6 +63,7 @@ from automodal.core.simulate import (
     MechanicalSystem,
     Modes,
     _dofs,
+    _quantity_factor,
     exact_modes,
     natural_frequencies_hz,
     state_space,
@@ -77,6 +78,8 @@ __all__ = [
     "LINES_PER_BANDWIDTH",
     "RANDOM_AVERAGES",
     "DiscreteModel",
+    "clear_modes",
+    "nearest_modes",
     "TimePlan",
     "default_duration",
     "default_pulse_width",
@@ -542,3 +545,44 @@ def simulate_time_test(
         attributes=attributes,
     )
     return series, modes, time_plan
+
+
+# ------------------------------------------------------------------------ truth checks
+
+
+def clear_modes(
+    modes: Modes, band_top_hz: float, quantity: str = "displacement", share: float = 0.01
+) -> np.ndarray:
+    """The exact modes a test shows clearly: those a truth test may demand to be found.
+
+    A mode is clear when its natural frequency is at most ``band_top_hz`` (the analysed
+    band) and its resonance peak in the measured quantity, ``|lambda|^p max |R| / sigma``
+    (``p`` = 0, 1, 2 for displacement, velocity, acceleration; ``R`` the residues, ``sigma``
+    the decay rate), is at least ``share`` of the largest mode's.
+
+    Returns
+    -------
+    ndarray of int
+        Indices into ``modes``.
+    """
+    if modes.residues is None:
+        raise ValueError("the modes have no residues (give the inputs to exact_modes)")
+    if modes.n_modes == 0:
+        return np.zeros(0, dtype=int)
+    gain = np.abs(_quantity_factor(np.abs(modes.poles), quantity))
+    peak = np.abs(modes.residues).reshape(modes.n_modes, -1).max(axis=1) * gain
+    peak = peak / -modes.poles.real
+    return np.flatnonzero((modes.frequency_hz <= band_top_hz) & (peak >= share * peak.max()))
+
+
+def nearest_modes(true_hz: np.ndarray, found_hz: np.ndarray, tol: float = 0.01) -> np.ndarray:
+    """For each true frequency, the index of the nearest found one within the relative
+    tolerance ``tol``, or -1."""
+    true_hz = np.asarray(true_hz, dtype=float).reshape(-1)
+    found_hz = np.asarray(found_hz, dtype=float).reshape(-1)
+    out = np.full(true_hz.size, -1)
+    if found_hz.size:
+        k = np.argmin(np.abs(found_hz[None, :] - true_hz[:, None]), axis=1)
+        ok = np.abs(found_hz[k] / true_hz - 1) < tol
+        out[ok] = k[ok]
+    return out
