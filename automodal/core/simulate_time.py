@@ -67,6 +67,7 @@ from automodal.core.simulate import (
     exact_modes,
     natural_frequencies_hz,
     state_space,
+    synthetic_attributes,
 )
 from automodal.timedata import TimeSeries
 
@@ -528,13 +529,9 @@ def simulate_time_test(
     measured = None if excitation == "ambient" else _with_noise(force, noise, rng)
     attributes = {
         "quantity": quantity,
-        "structure": str(system.meta.get("name", system.meta.get("kind", "system"))),
-        "generator": "automodal simulate",
-        "seed": int(seed),
-        "noise_level": float(noise),
+        **synthetic_attributes(system, seed, noise),
         "excitation": excitation,
         "hold": hold,
-        "damping": str(system.meta.get("damping", {}).get("kind", "none")),
     }
     series = TimeSeries(
         outputs=y,
