@@ -471,8 +471,10 @@ def simulate_time_test(
     excitation : {"hits", "random", "ambient"}
         ``"hits"``: ``n_hits`` half-sine hammer pulses (:func:`half_sine_hits`), each
         followed by the free decay of the response; ``"random"``: independent white
-        Gaussian forces, measured; ``"ambient"``: independent white Gaussian forces,
-        not measured (the series has no inputs).
+        Gaussian force samples, measured (the samples are white up to ``fs / 2``, the
+        band-limited white noise of a shaker test; burst random is not simulated);
+        ``"ambient"``: independent white Gaussian forces, not measured (the series has no
+        inputs).
     quantity : {"displacement", "velocity", "acceleration"}
         The response measured.
     noise : float
