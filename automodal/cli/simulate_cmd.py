@@ -6,6 +6,7 @@ from pathlib import Path
 
 import click
 import numpy as np
+from click.core import ParameterSource
 
 from automodal.cli._common import (
     checked_test_date,
@@ -49,8 +50,26 @@ def parse_dofs(text: str, n_dof: int, option: str) -> list[int]:
     return [d - 1 for d in dofs]
 
 
+FRF_ONLY = ("lines", "fmin", "fmax", "noise_kind", "pure_noise")
+"""Options of the FRF excitation only (the spectrum the file holds)."""
+
+TIME_ONLY = ("sample_rate", "duration", "hits", "pulse_width")
+"""Options of the time excitations only (how the records are sampled)."""
+
+
+def _given(names: tuple[str, ...]) -> list[str]:
+    """The options among ``names`` that the command line set (not left at their default)."""
+    ctx = click.get_current_context()
+    return [n for n in names
+            if ctx.get_parameter_source(n) not in (ParameterSource.DEFAULT, None)]
+
+
+def _option(name: str) -> str:
+    return "--" + name.replace("_", "-")
+
+
 def modes_path(output: Path) -> Path:
-    """``<dir>/<stem>.modes.json`` beside the FRF file."""
+    """``<dir>/<stem>.modes.json`` beside the FRF or time file."""
     return output.with_name(output.stem + ".modes.json")
 
 
@@ -73,7 +92,10 @@ Examples:
   automodal simulate chain6.h5 --dof 6 --inputs 6 --seed 1
   automodal simulate plate.h5 --system grid --grid 3 4 --outputs 1,3,5-8 \\
       --inputs 1,12 --quantity acceleration --damping nonproportional
-  automodal simulate noise.h5 --pure-noise --seed 7""",
+  automodal simulate noise.h5 --pure-noise --seed 7
+  automodal simulate hammer.h5 --excitation hits --hits 8 --quantity acceleration
+  automodal simulate shaker.h5 --excitation random --noise 0.05 --seed 3
+  automodal simulate ambient.h5 --excitation ambient --duration 3600""",
 )
 @click.argument("output", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("--system", "system_kind", type=click.Choice(["chain", "grid"]), default="chain",
@@ -101,6 +123,22 @@ Examples:
 @click.option("--noise-kind", type=click.Choice(["proportional", "additive"]),
               default="proportional", show_default=True,
               help="Noise std relative to |H| at each line, or to the RMS of each FRF.")
+@click.option("--excitation", type=click.Choice(["frf", "hits", "random", "ambient"]),
+              default="frf", show_default=True,
+              help="frf: FRFs with noise. hits: hammer hits, forces and responses in time. "
+              "random: white random forces at --inputs, measured. ambient: white random "
+              "forces at --inputs (default all DOFs), outputs only.")
+@click.option("--sample-rate", type=click.FloatRange(min=0, min_open=True), default=None,
+              help="Time excitations: Hz.  [default: 3.2 x the highest natural frequency, "
+              "rounded up]")
+@click.option("--duration", type=click.FloatRange(min=0, min_open=True), default=None,
+              help="Time excitations: record length in s.  [default: from the slowest "
+              "mode's decay time; see docs/cli.md]")
+@click.option("--hits", type=click.IntRange(min=1), default=5, show_default=True,
+              help="Hits: number of hammer hits.")
+@click.option("--pulse-width", type=click.FloatRange(min=0, min_open=True), default=None,
+              help="Hits: width of the half-sine pulse in s.  [default: its spectrum half "
+              "down at sample-rate / 2.56]")
 @click.option("--lines", type=click.IntRange(min=2), default=1000, show_default=True,
               help="Number of frequency lines.")
 @click.option("--fmin", type=click.FloatRange(min=0), default=None,
@@ -117,13 +155,17 @@ Examples:
 def simulate(output: Path, system_kind: str, dof: int, grid_size: tuple[int, int],
              symmetric: bool, outputs: str, inputs: str | None, quantity: str, damping: str,
              zeta: float, noise: float, noise_kind: str, lines: int, fmin: float | None,
-             fmax: float | None, pure_noise: bool, seed: int | None, test_date: str | None,
-             quiet: bool, debug: bool) -> None:
+             excitation: str, sample_rate: float | None, duration: float | None, hits: int,
+             pulse_width: float | None, fmax: float | None, pure_noise: bool,
+             seed: int | None, test_date: str | None, quiet: bool, debug: bool) -> None:
     """Write a synthetic test of a known system to OUTPUT.h5, with its exact modes.
 
-    The FRF file (docs/frf-file.md) gets the chosen responses per unit force with
-    complex Gaussian noise; <OUTPUT stem>.modes.json beside it gets the exact modes at the
-    sensors (frequency, damping ratio, shapes, residues) and every setting used.
+    With --excitation frf (the default) the FRF file (docs/frf-file.md) gets the chosen
+    responses per unit force with complex Gaussian noise. With hits, random or ambient it
+    gets time records in its /time group instead: responses (and measured forces, except
+    ambient) simulated exactly, with white noise of --noise times each channel's RMS.
+    <OUTPUT stem>.modes.json beside it gets the exact modes at the sensors (frequency,
+    damping ratio, shapes, residues) and every setting used.
     """
     # imported here so that `automodal simulate --help` does not load scipy and h5py
     from automodal.core import simulate as sim
@@ -140,8 +182,19 @@ def simulate(output: Path, system_kind: str, dof: int, grid_size: tuple[int, int
             system = sim.grid(*grid_size, symmetric=symmetric)
         n = system.n_dof
         out = parse_dofs(outputs, n, "--outputs")
-        inp = parse_dofs(str(n) if inputs is None else inputs, n, "--inputs")
         system = sim.damp(system, damping, zeta)
+        if excitation != "frf":
+            wrong = _given(FRF_ONLY)
+            if wrong:
+                raise click.UsageError(f"{_option(wrong[0])} applies to --excitation frf only")
+            _simulate_time(output, system, out, inputs, excitation, quantity, noise, seed,
+                           sample_rate, duration, hits, pulse_width, when, quiet)
+            return
+        wrong = _given(TIME_ONLY)
+        if wrong:
+            raise click.UsageError(f"{_option(wrong[0])} applies to the time excitations "
+                                   "only (--excitation hits, random or ambient)")
+        inp = parse_dofs(str(n) if inputs is None else inputs, n, "--inputs")
         f_nat = sim.natural_frequencies_hz(system)
         f_top = 1.25 * f_nat.max() if fmax is None else fmax
         if fmin is not None and fmin >= f_top:
@@ -183,3 +236,67 @@ def simulate(output: Path, system_kind: str, dof: int, grid_size: tuple[int, int
                 f"({in_band.sum()} in band, {_range(modes.frequency_hz, '.4g')} Hz, "
                 f"zeta {_range(100 * modes.damping_ratio, '.2f')} %)"
             )
+
+
+def _simulate_time(output: Path, system, out: list[int], inputs: str | None, excitation: str,
+                   quantity: str, noise: float, seed: int | None, sample_rate: float | None,
+                   duration: float | None, hits: int, pulse_width: float | None,
+                   when: str | None, quiet: bool) -> None:
+    """The time excitations: write the time file and the exact modes beside it."""
+    from automodal.core import simulate_time as sim_time
+    from automodal.io.modes_file import write_modes_json
+    from automodal.io.time_file import write_time
+
+    n = system.n_dof
+    default_inputs = "all" if excitation == "ambient" else str(n)
+    inp = parse_dofs(default_inputs if inputs is None else inputs, n, "--inputs")
+    if excitation == "hits" and len(inp) != 1:
+        raise click.BadParameter("a hammer test hits one DOF: give one", param_hint="--inputs")
+    if not system.meta["damping"]["zeta"] > 0:
+        raise click.BadParameter("time records need damping (> 0): an undamped mode never "
+                                 "dies out", param_hint="--zeta")
+    try:
+        series, modes, plan = sim_time.simulate_time_test(
+            system, out, inp, excitation, quantity, noise, seed, sample_rate, duration,
+            hits, pulse_width)
+    except ValueError as exc:  # the sampling asked for does not make a test
+        raise click.UsageError(str(exc)) from None
+    seed_used = int(series.attributes["seed"])
+    if when is not None:
+        series.attributes["test_date"] = when
+    mpath = modes_path(output)
+    settings = {
+        "command": "automodal simulate",
+        "time_file": output.name,
+        "excitation": excitation,
+        "system": system.meta,
+        "outputs": [i + 1 for i in out],
+        "inputs": [j + 1 for j in inp],
+        "inputs_measured": excitation != "ambient",
+        "quantity": quantity,
+        "noise": noise,
+        "noise_kind": "white, std relative to each channel's RMS",
+        "sample_rate_hz": plan.sample_rate,
+        "n_samples": plan.n_samples,
+        "duration_s": plan.duration,
+        "duration_rule": plan.rule,
+        "hold": series.attributes["hold"],
+        "seed": seed_used,
+    }
+    if excitation == "hits":
+        settings.update(hits=plan.n_hits, pulse_width_s=plan.pulse_width,
+                        hit_spacing_samples=plan.hit_spacing, first_hit_sample=plan.first_hit)
+    write_time(output, series)
+    write_modes_json(mpath, modes, settings)
+    if not quiet:
+        what = f"{plan.n_hits} hits" if excitation == "hits" else excitation
+        band = plan.sample_rate / 2.56
+        in_band = modes.frequency_hz <= band
+        click.echo(
+            f"{output}: {system.meta['name']}, {_count(len(out), 'output')}, {what} at "
+            f"{_count(len(inp), 'DOF')}, {quantity}, {plan.duration:.6g} s at "
+            f"{plan.sample_rate:.6g} Hz ({plan.n_samples} samples), noise "
+            f"{100 * noise:g} %, seed {seed_used}; {mpath.name}: {modes.n_modes} modes "
+            f"({in_band.sum()} below fs/2.56, {_range(modes.frequency_hz, '.4g')} Hz, "
+            f"zeta {_range(100 * modes.damping_ratio, '.2f')} %)"
+        )

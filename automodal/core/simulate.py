@@ -673,6 +673,18 @@ def frequency_lines(f_max: float, n_lines: int, f_min: float | None = None) -> n
     return np.linspace(f_min, f_max, n_lines)
 
 
+def synthetic_attributes(system: MechanicalSystem, seed: int, noise: float) -> dict[str, Any]:
+    """The file attributes every synthetic test carries: ``structure``, ``generator``,
+    ``seed``, ``noise_level`` and ``damping`` (kind)."""
+    return {
+        "structure": str(system.meta.get("name", system.meta.get("kind", "system"))),
+        "generator": "automodal simulate",
+        "seed": int(seed),
+        "noise_level": float(noise),
+        "damping": str(system.meta.get("damping", {}).get("kind", "none")),
+    }
+
+
 def simulate_test(
     system: MechanicalSystem,
     outputs: IndexLike,
@@ -725,13 +737,9 @@ def simulate_test(
         H = add_noise(H, noise, rng, noise_kind)
         modes = exact_modes(system, out, inp)
     attributes = {
-        "structure": str(system.meta.get("name", system.meta.get("kind", "system"))),
-        "generator": "automodal simulate",
-        "seed": int(seed),
-        "noise_level": float(noise),
+        **synthetic_attributes(system, seed, noise),
         "noise_kind": noise_kind,
         "pure_noise": int(bool(pure_noise)),
-        "damping": str(system.meta.get("damping", {}).get("kind", "none")),
     }
     data = FRFData(
         frequency=f,
