@@ -196,7 +196,7 @@ def identify(
       automodal identify 'incoming/*.h5' -o reports/ --baseline baseline.json --quiet
     """
     with exit_on_error(debug), _quiet_warnings(debug):
-        from automodal.app.batch import is_batch_input
+        from automodal.app.run import is_batch_input
         from automodal.settings import Settings
 
         settings = Settings(

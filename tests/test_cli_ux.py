@@ -1,0 +1,45 @@
+"""What a test engineer sees and does at the command line (issue 15): the table, mode
+numbers, warnings, monitoring options, output folders, and a lean ``identify``."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+from click.testing import CliRunner
+
+from automodal.cli import main
+
+SAMPLE = Path(__file__).resolve().parents[1] / "sample_data" / "chain6.h5"
+FAST = ["--bootstrap", "6", "--seed", "1"]
+
+
+def cli(*args: object):
+    """Run the command line in this process; returns click's result (stdout and stderr
+    apart)."""
+    return CliRunner().invoke(main, [str(a) for a in args], catch_exceptions=False)
+
+
+# ------------------------------------------------------------------------------ imports
+
+HEAVY = ("automodal.app.batch", "automodal.app.monitoring", "scipy.stats", "scipy.ndimage",
+         "scipy.signal", "matplotlib", "dask", "joblib")
+
+
+def test_identify_of_one_file_imports_no_heavy_module():
+    """A run on one file imports neither the batch machinery nor libraries it does not use
+    (the imports of ``automodal identify`` are a large share of a small run)."""
+    code = (
+        "import sys\n"
+        "from automodal.cli import main\n"
+        "try:\n"
+        f"    main(['identify', {str(SAMPLE)!r}, '--bootstrap', '4', '--quiet'])\n"
+        "except SystemExit as exc:\n"
+        "    assert exc.code == 0, exc.code\n"
+        f"print(','.join(m for m in {HEAVY!r} if m in sys.modules))\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "", f"imported: {done.stdout.strip()}"
