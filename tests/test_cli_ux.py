@@ -3,10 +3,12 @@ numbers, warnings, monitoring options, output folders, and a lean ``identify``."
 
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
 from pathlib import Path
 
+import pytest
 from click.testing import CliRunner
 
 from automodal.cli import main
@@ -43,3 +45,36 @@ def test_identify_of_one_file_imports_no_heavy_module():
                           timeout=120)
     assert done.returncode == 0, done.stderr
     assert done.stdout.strip() == "", f"imported: {done.stdout.strip()}"
+
+
+# ------------------------------------------------------------------------------ the table
+
+SISO = SAMPLE.with_name("chain8_siso.h5")
+
+
+def test_table_shows_physical_modes_and_warnings_go_to_stderr(tmp_path):
+    out = tmp_path / "r.json"
+    done = cli("identify", SISO, "-o", out, *FAST)
+    assert done.exit_code == 0, done.output
+    report = json.loads(out.read_text())
+    physical = [m for m in report["modes"] if m["physical"]]
+    rows = done.stdout.splitlines()[2:-1]
+    assert len(rows) == len(physical) < len(report["modes"])
+    assert [r.split()[0] for r in rows] == [str(k) for k in range(1, len(physical) + 1)]
+    assert "not shown (--all)" in done.stdout.splitlines()[-1]
+    assert report["warnings"], "the test needs an input that makes a warning"
+    assert done.stderr.splitlines() == [f"automodal: warning: {w}" for w in report["warnings"]]
+
+    every = cli("identify", SISO, "--all", *FAST)
+    assert len(every.stdout.splitlines()[2:-1]) == len(report["modes"])
+    assert "not physical" in every.stdout
+
+
+@pytest.mark.parametrize("flag", ["--quiet", "--json"])
+def test_quiet_and_json_leave_the_warnings_in_the_report(flag):
+    done = cli("identify", SISO, flag, *FAST)
+    assert done.exit_code == 0 and done.stderr == ""
+    if flag == "--quiet":
+        assert done.stdout == ""
+    else:
+        assert json.loads(done.stdout)["warnings"]

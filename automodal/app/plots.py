@@ -334,7 +334,7 @@ def mode_shapes(
             _draw_shape_bars(ax, shape, _shape_channel_names(report, shape.size), k == 0)
         zeta = mode.damping_ratio
         damping = f", ζ {100 * zeta:.2f} %" if zeta is not None else ""
-        ax.set_title(f"mode {mode.id}: {_hz(mode.frequency_hz)}{damping}",
+        ax.set_title(f"mode {mode.mode_number or '-'}: {_hz(mode.frequency_hz)}{damping}",
                      fontsize=8)
     how = "real part on the sensor geometry" if geometry else "real part and magnitude by channel"
     fig.suptitle(f"Shapes of the physical modes ({how})", fontsize=10)
@@ -424,7 +424,7 @@ def trend(history: History, *, fig: Figure | SubFigure | None = None) -> Figure 
         band = 100.0 * (history.frequency_ci95_hz[:, m, :] - fb) / fb
         zeta = 100.0 * history.damping_ratio[:, m]
         zband = 100.0 * history.damping_ci95[:, m, :]
-        label = f"mode {int(history.mode_ids[m])} ({_hz(fb)})"
+        label = f"mode {int(history.mode_numbers[m])} ({_hz(fb)})"
         for ax, y, b in ((ax_f, rel, band), (ax_d, zeta, zband)):
             ax.plot(x, y, "o-", color=color, ms=3, lw=1.0, label=label if ax is ax_f else None)
             ax.fill_between(x, b[:, 0], b[:, 1], color=color, alpha=0.2, lw=0)

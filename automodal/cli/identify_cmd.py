@@ -133,8 +133,12 @@ def _run_batch(input_path: str, outputs: tuple[str, ...], settings: Settings,
 @click.option("-o", "--output", "outputs", multiple=True, metavar="REPORT",
               help="Write a report (.json or .h5); may be given several times.")
 @click.option("--json", "as_json", is_flag=True, help="Print the JSON report instead of the table.")
+@click.option("--all", "show_all", is_flag=True,
+              help="List every surviving cluster in the table, the ones not called physical "
+              "too (default: the physical modes only).")
 @click.option("-q", "--quiet", is_flag=True,
-              help="Print nothing unless something is wrong (for cron).")
+              help="Print nothing unless something is wrong (for cron): no table, no "
+              "warnings (they stay in the report), only errors and flagged modes' exit 3.")
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of the bootstrap.")
 @click.option("--bootstrap", "n_bootstrap", type=click.IntRange(2, 100000), default=100,
               show_default=True, help="Bootstrap replicates.")
@@ -162,6 +166,7 @@ def identify(
     input_path: str,
     outputs: tuple[str, ...],
     as_json: bool,
+    show_all: bool,
     quiet: bool,
     seed: int,
     n_bootstrap: int,
@@ -177,7 +182,10 @@ def identify(
 ) -> None:
     """Identify the modes in INPUT (an automodal FRF file) with no human choice.
 
-    Prints a table of modes (or the JSON report with --json) and writes each -o report.
+    Prints a table of the physical modes, numbered 1, 2, ... by frequency (every cluster
+    with --all; the JSON report with --json), and writes each -o report. The report's
+    warnings (a band edge on a resonance, reciprocity assumed, lines left out, ...) follow
+    the table on stderr, one line each; --quiet and --json leave them in the report only.
 
     INPUT may also be a folder or a quoted glob: a batch run, one report per file in the
     folder -o OUTDIR with summary.json and summary.csv; files whose report is up to date
@@ -238,7 +246,9 @@ def identify(
 
             click.echo(json.dumps(outcome.report.to_dict(), indent=2))
         elif not quiet:
-            click.echo(format_table(outcome.result))
+            click.echo(format_table(outcome.result, show_all=show_all))
+            for warning in outcome.report.warnings:
+                click.echo(f"automodal: warning: {warning}", err=True)
         check = outcome.check
         if check is not None and not quiet:
             for entry in check.flagged_entries:

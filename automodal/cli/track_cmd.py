@@ -73,7 +73,7 @@ def track(reports: tuple[str, ...], output: str, baseline_path: str | None, quie
         write_history(out, history)
         if not quiet:
             for t in range(history.n_times):
-                flagged = [f"mode {int(history.mode_ids[m])}" for m in range(history.n_modes)
+                flagged = [f"mode {int(history.mode_numbers[m])}" for m in range(history.n_modes)
                            if history.mode_flagged[t, m]]
                 state = f"flagged: {', '.join(flagged)}" if flagged else "ok"
                 click.echo(f"{history.times[t]}  {history.labels[t]}: {state}")
