@@ -19,6 +19,8 @@ from automodal.cli._common import (
     REPORT_SUFFIXES,
     debug_option,
     exit_on_error,
+    threshold_options,
+    thresholds_from,
 )
 from automodal.errors import InputError
 
@@ -27,6 +29,7 @@ if TYPE_CHECKING:
     from automodal.app.run import RunOutcome
     from automodal.report_model import Report
     from automodal.settings import Settings
+    from automodal.tracking import Thresholds
 
 
 def _check_outputs(outputs: tuple[str, ...]) -> None:
@@ -90,8 +93,8 @@ def _batch_outdir(outputs: tuple[str, ...]) -> Path:
 
 
 def _run_batch(input_path: str, outputs: tuple[str, ...], settings: Settings,
-               baseline: Report | None,
-               baseline_path: str | None, report_format: str, force: bool, jobs: int | None,
+               baseline: Report | None, baseline_path: str | None,
+               thresholds: Thresholds | None, report_format: str, force: bool, jobs: int | None,
                dask_scheduler: str | None, as_json: bool, quiet: bool) -> int:
     """Batch mode of ``identify``: every file of a folder or glob; returns the exit status."""
     from automodal.app.batch import expand_inputs, run_batch
@@ -116,7 +119,7 @@ def _run_batch(input_path: str, outputs: tuple[str, ...], settings: Settings,
                 click.echo(f"{outcome.file}: {line}", err=as_json)
 
     result = run_batch(files, outdir, settings, formats=report_format, baseline=baseline,
-                       baseline_path=baseline_path, force=force, jobs=jobs,
+                       baseline_path=baseline_path, thresholds=thresholds, force=force, jobs=jobs,
                        scheduler_address=dask_scheduler, progress=show, spec=input_path)
     if as_json:
         click.echo(result.summary_json.read_text(encoding="utf-8"), nl=False)
@@ -155,6 +158,7 @@ def _run_batch(input_path: str, outputs: tuple[str, ...], settings: Settings,
 @click.option("--baseline", "baseline_path", type=click.Path(), default=None, metavar="REPORT",
               help="Check the modes against a baseline report: exit 3 when a mode moved, "
               "changed shape or is missing (a 'monitoring' block goes into the report).")
+@threshold_options
 @click.option("--force", is_flag=True,
               help="Batch: identify again files whose report is up to date.")
 @click.option("--format", "report_format", type=click.Choice(["json", "h5", "both"]),
@@ -175,6 +179,9 @@ def identify(
     jobs: int | None,
     plot_dir: str | None,
     baseline_path: str | None,
+    shift_sigmas: float | None,
+    min_shift_percent: float | None,
+    min_mac: float | None,
     force: bool,
     report_format: str,
     dask_scheduler: str | None,
@@ -221,16 +228,21 @@ def identify(
             raise InputError("--dask-scheduler is for batch runs (a folder or a glob as INPUT)")
         if not batch:
             _check_outputs(outputs)
+        thresholds = thresholds_from(shift_sigmas, min_shift_percent, min_mac)
+        if thresholds is not None and not baseline_path:
+            raise InputError("--shift-sigmas, --min-shift-percent and --min-mac are "
+                             "thresholds of the --baseline check: give --baseline too")
         baseline = read_baseline(baseline_path) if baseline_path else None
         if batch:
             sys.exit(_run_batch(input_path, outputs, settings, baseline, baseline_path,
-                                report_format, force, jobs, dask_scheduler, as_json, quiet))
+                                thresholds, report_format, force, jobs, dask_scheduler,
+                                as_json, quiet))
         from automodal.app.run import run_file
         from automodal.io.report import format_table
 
         def run(progress: Callable[[int], None] | None = None) -> RunOutcome:
             return run_file(input_path, settings, outputs, baseline, baseline_path,
-                            progress=progress)
+                            thresholds, progress=progress)
 
         if not quiet and sys.stderr.isatty():
             with click.progressbar(length=n_bootstrap, label="bootstrap", file=sys.stderr) as bar:
