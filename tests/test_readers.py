@@ -541,7 +541,7 @@ def test_convert_uff_round_trip(tmp_path):
     assert result.returncode == 0, result.stderr
     assert result.stderr == ""
     assert result.stdout.splitlines() == [
-        f"{out}: 2 output(s) x 2 input(s), acceleration, 40 lines 1-40 Hz"]
+        f"{out}: 2 output(s) x 2 input(s), acceleration, 40 lines [1, 40] Hz"]
     assert_same_data(read_frf(out), read_uff(uff))
 
 

@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import os
 import sys
 import traceback
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 import click
@@ -49,6 +51,28 @@ def exit_on_error(debug: bool = False) -> Iterator[None]:
         msg = " ".join(str(exc).split()) or type(exc).__name__
         click.echo(f"automodal: internal error: {type(exc).__name__}: {msg}", err=True)
         sys.exit(EXIT_INTERNAL)
+
+
+def check_output_folder(path: str | os.PathLike[str], what: str) -> None:
+    """Refuse, before any work, an output whose folder can be neither found nor made.
+
+    Every command makes the missing folders of its outputs when it writes them (as
+    ``mkdir -p`` would); the nearest folder above ``path`` that exists must therefore be a
+    folder, and writable.
+
+    Raises
+    ------
+    InputError
+        Naming ``path`` (``what`` says which output it is, e.g. ``"report"``).
+    """
+    folder = Path(os.path.abspath(path)).parent
+    while not folder.exists() and folder != folder.parent:
+        folder = folder.parent
+    if not folder.is_dir():
+        raise InputError(f"cannot make the {what}'s folder: {folder} is not a folder",
+                         os.fspath(path))
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise InputError(f"the {what}'s folder ({folder}) is not writable", os.fspath(path))
 
 
 def debug_option(func: Callable) -> Callable:

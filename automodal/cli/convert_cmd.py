@@ -7,7 +7,7 @@ from typing import TYPE_CHECKING
 
 import click
 
-from automodal.cli._common import debug_option, exit_on_error
+from automodal.cli._common import check_output_folder, debug_option, exit_on_error
 from automodal.errors import InputError
 
 if TYPE_CHECKING:
@@ -36,7 +36,7 @@ def summary(output: Path, data: FRFData) -> str:
     quantity = f"{data.quantity} (assumed: not stated in the input)" if assumed else data.quantity
     f = data.frequency
     text = (f"{output}: {data.n_outputs} output(s) x {data.n_inputs} input(s), {quantity}, "
-            f"{data.n_freq} lines {f[0]:.6g}-{f[-1]:.6g} Hz")
+            f"{data.n_freq} lines [{f[0]:.6g}, {f[-1]:.6g}] Hz")
     if data.attributes.get("dropped_0hz_line"):
         text += "; 0 Hz line dropped (NaN or 0+0j)"
     return text
@@ -65,8 +65,7 @@ def convert(input_path: str, output: Path, quiet: bool, debug: bool) -> None:
     with exit_on_error(debug):
         if output.suffix.lower() not in OUTPUT_SUFFIXES:
             raise InputError("the output must be an FRF file with suffix .h5 or .hdf5", output)
-        if not output.parent.is_dir():
-            raise InputError("the folder to write into does not exist", output)
+        check_output_folder(output, "FRF file")
         if Path(input_path).is_dir():
             raise InputError("is a folder, not an input file", input_path)
         from automodal.core.from_time import as_frfdata

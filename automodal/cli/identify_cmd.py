@@ -17,6 +17,7 @@ from automodal.cli._common import (
     EXIT_MONITORING,
     EXIT_OK,
     REPORT_SUFFIXES,
+    check_output_folder,
     debug_option,
     exit_on_error,
     threshold_options,
@@ -38,11 +39,7 @@ def _check_outputs(outputs: tuple[str, ...]) -> None:
             raise InputError(
                 "unknown report type: the suffix must be .json or .h5", out
             )
-        parent = Path(out).parent
-        if not parent.is_dir():
-            raise InputError("the report's folder does not exist", out)
-        if not os.access(parent, os.W_OK | os.X_OK):
-            raise InputError("the report's folder is not writable", out)
+        check_output_folder(out, "report")
 
 
 @contextmanager
@@ -78,15 +75,15 @@ def read_baseline(path: str) -> Report:
 
 
 def _batch_outdir(outputs: tuple[str, ...]) -> Path:
-    """The one ``-o OUTDIR`` of a batch run (made by the batch when missing)."""
+    """The one ``-o OUTDIR`` of a batch run (made by the batch when missing, with the
+    folders above it)."""
     if len(outputs) != 1:
         raise InputError("a batch run (a folder or a glob as INPUT) needs exactly one -o OUTDIR")
     out = Path(outputs[0])
     if out.exists() and not out.is_dir():
         raise InputError("is not a folder: a batch run writes its reports into -o OUTDIR",
                          str(out))
-    if not out.parent.is_dir():
-        raise InputError("the output folder's parent does not exist", str(out))
+    check_output_folder(out / "summary.json", "batch output")
     if out.is_dir() and not os.access(out, os.W_OK | os.X_OK):
         raise InputError("the output folder is not writable", str(out))
     return out
@@ -148,7 +145,9 @@ def _run_batch(input_path: str, outputs: tuple[str, ...], settings: Settings,
 @click.option("--band", nargs=2, type=float, metavar="FMIN FMAX", default=None,
               help="Analysed band in Hz (default: the data's span).")
 @click.option("--order", "max_order", type=click.IntRange(4, 5000), default=None,
-              help="Largest model order (states) considered (default: automatic).")
+              help="Largest model order considered, in states: two per mode, so --order 12 "
+              "finds at most 6 modes (default: automatic; a warning says when the order "
+              "stopped the model short of the data).")
 @click.option("--jobs", type=click.IntRange(min=1), default=None,
               help="Cores to use (>= 1): threads for one file's bootstrap, processes across the "
               "files of a batch. Default: automatic (all cores when the work pays for them). "

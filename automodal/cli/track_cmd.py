@@ -10,6 +10,7 @@ import click
 from automodal.cli._common import (
     EXIT_MONITORING,
     REPORT_SUFFIXES,
+    check_output_folder,
     debug_option,
     exit_on_error,
     threshold_options,
@@ -76,8 +77,7 @@ def track(reports: tuple[str, ...], output: str, baseline_path: str | None, quie
     """
     with exit_on_error(debug):
         out = Path(output)
-        if not out.parent.is_dir():
-            raise InputError("the history file's folder does not exist", str(out))
+        check_output_folder(out, "history file")
         from automodal.app.monitoring import history_of_files
         from automodal.io.history import write_history
 

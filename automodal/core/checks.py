@@ -163,7 +163,7 @@ def prepare(
         raise InputError("no usable frequency line in the band", source)
     _check_trend(H, source, warnings)
     if not has_resonance(H):
-        warnings.append(f"no resonance peak in the band {freq[0]:g}-{freq[-1]:g} Hz (the FRF "
+        warnings.append(f"no resonance peak in the band [{freq[0]:g}, {freq[-1]:g}] Hz (the FRF "
                         "magnitude has no local maximum that stands out of the noise): expect "
                         "no physical mode")
     for edge in edge_peaks(H):
