@@ -65,14 +65,17 @@ def check_output_folder(path: str | os.PathLike[str], what: str) -> None:
     InputError
         Naming ``path`` (``what`` says which output it is, e.g. ``"report"``).
     """
-    folder = Path(os.path.abspath(path)).parent
+    parent = Path(os.path.abspath(path)).parent
+    folder = parent
     while not folder.exists() and folder != folder.parent:
         folder = folder.parent
     if not folder.is_dir():
         raise InputError(f"cannot make the {what}'s folder: {folder} is not a folder",
                          os.fspath(path))
     if not os.access(folder, os.W_OK | os.X_OK):
-        raise InputError(f"the {what}'s folder ({folder}) is not writable", os.fspath(path))
+        problem = (f"the {what}'s folder is not writable" if folder == parent
+                   else f"cannot make the {what}'s folder: {folder} is not writable")
+        raise InputError(problem, os.fspath(path))
 
 
 def debug_option(func: Callable) -> Callable:

@@ -83,8 +83,9 @@ def _batch_outdir(outputs: tuple[str, ...]) -> Path:
     if out.exists() and not out.is_dir():
         raise InputError("is not a folder: a batch run writes its reports into -o OUTDIR",
                          str(out))
-    check_output_folder(out / "summary.json", "batch output")
-    if out.is_dir() and not os.access(out, os.W_OK | os.X_OK):
+    if not out.exists():
+        check_output_folder(out, "output folder")
+    elif not os.access(out, os.W_OK | os.X_OK):
         raise InputError("the output folder is not writable", str(out))
     return out
 
