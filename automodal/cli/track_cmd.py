@@ -71,8 +71,8 @@ def track(reports: tuple[str, ...], output: str, baseline_path: str | None, quie
 
     \b
     Examples:
-      automodal track reports/ -o history.h5
-      automodal track reports/*.json --baseline baseline.json -o history.h5
+      automodal track reports/ --baseline baseline.json -o history.h5
+      automodal track reports/*.json --baseline base.json -o history.h5 --min-shift-percent 1
       automodal plot history.h5
     """
     with exit_on_error(debug):
