@@ -83,13 +83,19 @@ def select_band(
     f = data.frequency
     lo, hi = (float(f[0]), float(f[-1])) if band_hz is None else map(float, band_hz)
     if band_hz is not None and not (0 <= lo < hi):
-        raise InputError(f"band {lo:g}-{hi:g} Hz is not a valid band", data.source)
+        raise InputError(f"band [{lo:g}, {hi:g}] Hz is not a valid band", data.source)
     keep = (f >= lo) & (f <= hi) & (f > 0)
     if band_hz is None and f[0] == 0:
         warnings.append("the 0 Hz line was left out of the analysis")
     if not keep.any():
-        raise InputError(f"no frequency line in the band {lo:g}-{hi:g} Hz", data.source)
+        raise InputError(f"no frequency line in the band [{lo:g}, {hi:g}] Hz (the data's "
+                         f"lines span [{f[0]:g}, {f[-1]:g}] Hz)", data.source)
     fk = f[keep]
+    first = f[f > 0][0]
+    if band_hz is not None and (0 < lo < first or hi > f[-1]):  # 0: "from the start"
+        warnings.append(f"the band [{lo:g}, {hi:g}] Hz reaches beyond the data's lines "
+                        f"[{first:g}, {f[-1]:g}] Hz: the band analysed is "
+                        f"[{fk[0]:g}, {fk[-1]:g}] Hz")
     return fk, data.frf[keep], (float(fk[0]), float(fk[-1]))
 
 
@@ -272,6 +278,12 @@ def _identify(data: FRFData, s: Settings, progress: Callable[[int], None] | None
                         " smallest one: envelope weighting and the misfit-floor order used")
         p = p.enveloped()
         choice = order.select_orders(p.z, p.Hs, p.line_weights, s.max_order, p.data.source)
+    if s.max_order is not None and choice.n0 >= choice.limit:
+        warnings.append(
+            f"the largest model order {s.max_order} (states, two per mode: at most "
+            f"{s.max_order // 2} modes) was reached before a model fitted the data "
+            f"({order.count_peaks(p.Hs)} resonance peaks in the FRF): raise it, or leave it "
+            "automatic")
     ref = reference.build_reference(
         p.z, p.Hs, p.scales, p.line_weights, choice.reference, p.T,
         p.band_rad_s, s.zeta_max, s.coalescence, p.pole_map,

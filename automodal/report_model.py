@@ -101,6 +101,12 @@ def _int(x: Any, where: str) -> int:
     return x
 
 
+def _positive(x: Any, where: str) -> int:
+    if _int(x, where) < 1:
+        raise _refuse(where, f"is not a positive integer ({x!r})")
+    return x
+
+
 def _count(x: Any, where: str) -> int:
     if _int(x, where) < 0:
         raise _refuse(where, f"is negative ({x!r})")
@@ -408,7 +414,10 @@ class ReportMode:
     """One element of ``modes``: a cluster (or one member rank of a near-repeated one).
 
     Numbers are ``None`` where the value was not finite. ``cluster``, ``cluster_dim`` and
-    ``features`` are ``None`` when the report does not have them.
+    ``features`` are ``None`` when the report does not have them. ``mode_number`` numbers
+    the physical modes 1, 2, ... by frequency (``None`` for a cluster not called physical);
+    a report written before it existed gets it from ``physical`` when read
+    (:meth:`Report.from_dict`).
     """
 
     id: int
@@ -429,6 +438,7 @@ class ReportMode:
     cluster_dim: int | None = None
     features: dict[str, Number] | None = None
     estimator: str | None = None
+    mode_number: int | None = None
     extra: dict[str, Any] = field(default_factory=dict)
 
     @classmethod
@@ -457,12 +467,14 @@ class ReportMode:
             features=f.opt("features", lambda x, w: {
                 str(k): _number(v, f"{w}.{k}") for k, v in _dict(x, w).items()}),
             estimator=f.opt("estimator", _str),
+            mode_number=f.opt("mode_number", _optional(_positive)),
             extra=f.extra(),
         )
 
     def to_dict(self) -> dict[str, Any]:
         out: dict[str, Any] = {
             "id": self.id,
+            "mode_number": self.mode_number,
             "frequency_hz": self.frequency_hz,
             "frequency_std_hz": self.frequency_std_hz,
             "frequency_ci95_hz": list(self.frequency_ci95_hz),
@@ -822,7 +834,9 @@ class Report:
             header=header,
             input=ReportInput.from_dict(f.req("input", _dict)),
             settings=ReportSettings.from_dict(f.req("settings", _dict)),
-            modes=[ReportMode.from_dict(m, f"modes[{i}]") for i, m in enumerate(modes)],
+            modes=_with_mode_numbers(
+                [ReportMode.from_dict(m, f"modes[{i}]") for i, m in enumerate(modes)],
+                numbered=all(isinstance(m, dict) and "mode_number" in m for m in modes)),
             trashbox=Trashbox.from_dict(f.req("trashbox", _dict)),
             summary=ReportSummary.from_dict(f.req("summary", _dict)),
             warnings=f.req("warnings", _strings),
@@ -927,7 +941,8 @@ class Report:
     def mode_table(self) -> ModeTable:
         """The modes as arrays (:class:`automodal.core.matching.ModeTable`).
 
-        ``null`` numbers are NaN; a mode without ``cluster`` is alone in its own; when
+        ``numbers`` holds the mode numbers (0 for a cluster not called physical); ``null``
+        numbers are NaN; a mode without ``cluster`` is alone in its own; when
         the modes' shapes differ in length the table has no shapes (width 0).
         """
         from automodal.core.matching import ModeTable
@@ -953,6 +968,7 @@ class Report:
             shapes=(np.vstack(shapes).astype(complex) if n and width
                     else np.full((n, 0), np.nan, complex)),
             cluster=cluster.reshape(n),
+            numbers=np.array([m.mode_number or 0 for m in modes], dtype=int),
         )
 
 
@@ -988,6 +1004,22 @@ def shape_channel_geometry(
     }
 
 
+def _with_mode_numbers(modes: list[ReportMode], numbered: bool) -> list[ReportMode]:
+    """``modes`` with the physical ones numbered 1, 2, ... by frequency when the report
+    did not number them (``numbered`` false: written before ``mode_number`` existed),
+    as the pipeline numbers them (modes without a frequency last)."""
+    if numbered:
+        return modes
+    order = sorted(range(len(modes)), key=lambda k: (
+        modes[k].frequency_hz is None, modes[k].frequency_hz or 0.0, k))
+    number = 0
+    for k in order:
+        m = modes[k]
+        number += m.physical
+        m.mode_number = number if m.physical else None
+    return modes
+
+
 def as_floats(values: Sequence[Any]) -> np.ndarray:
     """A float array from the report's JSON numbers (nested lists too), ``None`` as NaN."""
     def fix(v: Any) -> Any:
@@ -1003,6 +1035,7 @@ def _mode_content(mode: IdentifiedMode) -> dict[str, Any]:
     shape, shape_std = unit_max(mode.mode_shape, mode.mode_shape_std)
     return {
         "id": mode.id,
+        "mode_number": mode.mode_number,
         "frequency_hz": mode.frequency_hz,
         "frequency_std_hz": mode.frequency_std_hz,
         "frequency_ci95_hz": list(mode.frequency_ci95_hz),

@@ -37,6 +37,10 @@ class IdentifiedMode:
     reference_mode: int = -1
     """Index of the reference model's mode (in :meth:`ModalModel.modes` order) this mode
     is represented by (internal: not in the report)."""
+    mode_number: int | None = None
+    """The physical modes numbered 1, 2, ... by frequency (what the table, the figures and
+    monitoring call "mode 2"); ``None`` for a cluster not called physical. ``id`` numbers
+    every listed cluster."""
     estimator: str = "bootstrap"
     """Where the frequency, damping and their intervals come from: ``"bootstrap"`` (the
     replicates' median and percentiles) or ``"ml"`` (the noise-weighted maximum-likelihood

@@ -83,6 +83,8 @@ class History:
         Where the baseline came from.
     mode_ids : ndarray of int, shape (M,)
         The baseline's ids of the tracked modes.
+    mode_numbers : ndarray of int, shape (M,)
+        Their mode numbers in the baseline (1, 2, ...: what messages and figures call them).
     baseline_frequency_hz, baseline_damping_ratio : ndarray, shape (M,)
     frequency_hz, frequency_std_hz, damping_ratio, damping_std, mac : ndarray, shape (T, M)
     frequency_ci95_hz, damping_ci95 : ndarray, shape (T, M, 2)
@@ -115,6 +117,11 @@ class History:
     flagged: np.ndarray
     n_new: np.ndarray
     thresholds: Thresholds = field(default_factory=Thresholds)
+    mode_numbers: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        if self.mode_numbers is None:  # a history written before the numbers existed
+            self.mode_numbers = np.arange(1, np.asarray(self.mode_ids).size + 1)
 
     @property
     def n_times(self) -> int:

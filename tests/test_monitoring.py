@@ -173,13 +173,14 @@ def test_remeasured_structure_passes_and_softer_spring_is_flagged(site, tmp_path
     assert softer.exit_code == 3, softer.output
     block = read_report(tmp_path / "softer.json")["monitoring"]
     assert block["flagged"] is True
-    moved = {e["baseline_id"]: e for e in block["modes"] if e["flagged"]}
+    moved = {e["baseline_mode_number"]: e for e in block["modes"] if e["flagged"]}
+    assert sorted(moved) == [1, 2, 3]  # the physical modes by frequency, whatever their ids
     # the softer spring lowers every mode of the 3-DOF chain by 0.6-2.7 %
     true_shift = (sim.natural_frequencies_hz(DAMAGED) / sim.natural_frequencies_hz(HEALTHY) - 1)
     assert len(moved) == int(np.sum(np.abs(true_shift) > 0.004)) == 3
     for entry in moved.values():
         assert entry["reasons"] == ["frequency"] and entry["relative_shift"] < -0.004
-        assert f"mode {entry['baseline_id']} (" in softer.stdout
+        assert f"mode {entry['baseline_mode_number']} (" in softer.stdout
     shifts = sorted(e["relative_shift"] for e in moved.values())
     np.testing.assert_allclose(shifts, sorted(true_shift), atol=1e-3)
 
@@ -237,7 +238,8 @@ def test_history_of_ten_measurements_flags_from_the_seventh_on(site, tmp_path):
 
     history_path = tmp_path / "history.h5"
     tracked = cli("track", reports, "--baseline", site["baseline"], "-o", history_path)
-    assert tracked.exit_code == 0, tracked.output
+    assert tracked.exit_code == 3, tracked.output  # flagged, as identify --baseline
+    assert "flagged: mode 1, mode 2, mode 3" in tracked.stdout
     history = read_history(history_path)
     assert history.times[0] == "2026-03-01T06:00:00Z" and set(history.time_sources) == {"test_date"}
     assert history.flagged.tolist() == [k >= FIRST_DAMAGED for k in range(1, N_MEASUREMENTS + 1)]
@@ -320,3 +322,72 @@ def test_batch_on_a_dask_cluster(site, tmp_path):
     assert [o.status for o in result.outcomes] == ["ok", "ok"]
     assert (tmp_path / "m01.json").is_file() and (tmp_path / "m02.json").is_file()
     assert json.loads(result.summary_json.read_text())["counts"]["ok"] == 2
+
+
+def test_thresholds_from_the_command_line(site, tmp_path):
+    damaged = site["incoming"] / f"m{FIRST_DAMAGED:02d}.h5"
+    wide = ["--min-shift-percent", "5", "--shift-sigmas", "1000", "--min-mac", "0.5"]
+    run = cli("identify", damaged, "-o", tmp_path / "d.json", "--baseline", site["baseline"],
+              *wide, *BOOTSTRAP)
+    assert run.exit_code == 0, run.output  # a 10 % softer spring moves the modes < 3 %
+    block = read_report(tmp_path / "d.json")["monitoring"]
+    assert block["thresholds"]["min_relative_shift"] == pytest.approx(0.05)
+    assert block["thresholds"]["k_sigma"] == 1000 and block["thresholds"]["min_mac"] == 0.5
+
+    alone = cli("identify", damaged, "--min-mac", "0.5", *BOOTSTRAP)
+    assert alone.exit_code == 2 and "--baseline" in alone.stderr
+
+    out = tmp_path / "reports"
+    out.mkdir()
+    shutil.copy(tmp_path / "d.json", out / "d.json")
+    strict = cli("track", out, "--baseline", site["baseline"], "-o", tmp_path / "h.h5", "-q")
+    assert strict.exit_code == 3 and strict.stdout == ""
+    lenient = cli("track", out, "--baseline", site["baseline"], "-o", tmp_path / "h.h5", *wide)
+    assert lenient.exit_code == 0, lenient.output
+    assert read_history(tmp_path / "h.h5").thresholds.min_relative_shift == pytest.approx(0.05)
+
+
+@pytest.mark.parametrize("command", ["identify", "track"])
+def test_threshold_defaults_in_the_help_are_those_of_thresholds(command):
+    text = " ".join(cli(command, "--help").stdout.split())
+    th = mon.Thresholds()
+    assert f"Default {th.k_sigma:g}." in text
+    assert f"Default {100 * th.min_relative_shift:g}." in text
+    assert f"Default {th.min_mac:g}." in text
+
+
+def test_trend_without_test_dates_is_drawn_in_report_order(tmp_path):
+    base = _report("2026-01-01T00:00:00Z", [_mode(1, 5.0), _mode(2, 12.0)])
+    # a batch makes its reports within seconds: by time they would fall on one point
+    later = [_report(f"2026-01-01T00:00:0{d}Z", [_mode(1, 5.0), _mode(2, f)])
+             for d, f in ((2, 12.0), (3, 11.5), (4, 11.9))]
+    history = mon.build_history(later, ["a.json", "b.json", "c.json"], base, "base.json")
+    assert set(history.time_sources) == {"created"}
+
+    from automodal.app.plots import trend
+
+    fig = trend(history)
+    ax = fig.axes[0]
+    x = ax.lines[0].get_xdata()
+    assert list(x) == [1, 2, 3]
+    notes = [t for a in fig.axes for t in a.texts if t.get_gid() == "no-test-date"]
+    assert len(notes) == 1 and "3 of 3 reports have no test date" in notes[0].get_text()
+
+    dated = mon.build_history(
+        [_report("2026-01-01T00:00:00Z", [_mode(1, 5.0), _mode(2, 12.0)],
+                 {"test_date": f"2026-02-0{d}"}) for d in (1, 2)],
+        ["a.json", "b.json"], base, "base.json")
+    fig = trend(dated)
+    assert not [t for a in fig.axes for t in a.texts if t.get_gid() == "no-test-date"]
+
+
+def test_history_without_mode_numbers_reads_them_as_one_to_m(tmp_path):
+    base = _report("2026-01-01T00:00:00Z", [_mode(1, 5.0), _mode(2, 12.0)])
+    history = mon.build_history([base], ["a.json"], base, "base.json")
+    assert history.mode_numbers.tolist() == [1, 2]
+    path = write_history(tmp_path / "h.h5", history)
+    import h5py
+
+    with h5py.File(path, "a") as f:
+        del f["modes/number"]
+    assert read_history(path).mode_numbers.tolist() == [1, 2]

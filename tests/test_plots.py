@@ -297,7 +297,7 @@ def test_cli_plot_json_report_says_what_it_leaves_out(identified, tmp_path):
     [
         (lambda d: d / "missing.h5", "fig.png", "no such report file"),
         (lambda d: d / "r.json", "fig.gif", "unknown figure type"),
-        (lambda d: d / "r.json", "nowhere/fig.png", "folder does not exist"),
+        (lambda d: d / "r.json", "r.json/fig.png", "r.json is not a folder"),
         (lambda d: d / "bad.json", "fig.png", "not a valid JSON report"),
     ],
 )

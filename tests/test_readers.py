@@ -541,7 +541,7 @@ def test_convert_uff_round_trip(tmp_path):
     assert result.returncode == 0, result.stderr
     assert result.stderr == ""
     assert result.stdout.splitlines() == [
-        f"{out}: 2 output(s) x 2 input(s), acceleration, 40 lines 1-40 Hz"]
+        f"{out}: 2 output(s) x 2 input(s), acceleration, 40 lines [1, 40] Hz"]
     assert_same_data(read_frf(out), read_uff(uff))
 
 
@@ -581,14 +581,15 @@ def test_convert_summary_says_assumed_quantity(tmp_path):
     assert "displacement (assumed: not stated in the input)" in result.stdout
 
 
-@pytest.mark.parametrize("case", ["bad-input", "bad-suffix", "no-folder"])
+@pytest.mark.parametrize("case", ["bad-input", "bad-suffix", "folder-is-a-file"])
 def test_convert_refusals(tmp_path, case):
     good = write_uff(tmp_path / "good.uff", [uff_set((1, 3), (2, 3), frf_values(0))])
     bad = write_uff(tmp_path / "bad.uff", [uff_set((1, 3), (2, 3), frf_values(0), func_type=2)])
     source, out, name = {
         "bad-input": (bad, tmp_path / "out.h5", "bad.uff"),
         "bad-suffix": (good, tmp_path / "out.json", "out.json"),
-        "no-folder": (good, tmp_path / "nowhere" / "out.h5", "out.h5"),
+        # a missing folder is made; one that cannot be (a file in its place) is refused
+        "folder-is-a-file": (good, tmp_path / "good.uff" / "out.h5", "out.h5"),
     }[case]
 
     result = run_convert(str(source), str(out))

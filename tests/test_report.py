@@ -529,28 +529,51 @@ def test_newer_version_is_named_in_the_message(tmp_path):
 # -------------------------------------------------------------------------------- table
 
 
-def test_table_has_a_header_a_row_per_mode_and_a_summary(result):
+def test_table_lists_the_physical_modes_numbered_from_one(result):
     lines = format_table(result).splitlines()
     header, rule, rows, summary = lines[0], lines[1], lines[2:-1], lines[-1]
-    for word in ("id", "frequency (Hz)", "damping (%)", "physicalness", "members", "MPC"):
+    for word in ("mode", "frequency (Hz)", "damping (%)", "physicalness", "members", "MPC"):
         assert word in header
+    assert "class" not in header
     assert set(rule.replace(" ", "")) == {"-"}
-    assert len(rows) == len(result.modes)
-    for row, mode in zip(rows, sorted(result.modes, key=lambda m: m.frequency_hz)):
+    physical = sorted(result.physical_modes, key=lambda m: m.frequency_hz)
+    assert 0 < len(physical) < len(result.modes)  # the test needs both kinds
+    assert len(rows) == len(physical)
+    for k, (row, mode) in enumerate(zip(rows, physical), start=1):
         cells = row.split()
-        assert cells[0] == str(mode.id)
+        assert cells[0] == str(k) == str(mode.mode_number)
         assert cells[1] == f"{mode.frequency_hz:.4f}"
-        assert ("physical" in cells) is mode.physical
-        assert ("-" in cells) is (not mode.physical)
         assert cells[-2] == str(mode.n_members)
-    n_phys = len(result.physical_modes)
-    assert f"{n_phys} physical of {len(result.modes)} clusters" in summary
+    n_other = len(result.modes) - len(physical)
+    assert summary.startswith(f"{len(physical)} physical modes; {n_other} other clusters not "
+                              "shown (--all)")
     assert f"{result.trashbox_members} poles in the Trashbox" in summary
     assert f"runtime {result.runtime_s:.1f} s" in summary
 
 
-def test_table_columns_are_aligned(result):
-    lines = format_table(result).splitlines()[:-1]
+def test_table_with_all_lists_every_cluster_marked(result):
+    lines = format_table(result, show_all=True).splitlines()
+    rows = lines[2:-1]
+    assert "class" in lines[0] and len(rows) == len(result.modes)
+    for row, mode in zip(rows, sorted(result.modes, key=lambda m: m.frequency_hz)):
+        cells = row.split()
+        assert cells[0] == (str(mode.mode_number) if mode.physical else "-")
+        assert ("not physical" in row) is (not mode.physical)
+    assert "other clusters not physical" in lines[-1]
+
+
+def test_table_spread_of_a_single_member_is_not_zero(result):
+    lonely = dataclasses.replace(result.modes[0], n_members=1, frequency_std_hz=0.0,
+                                 damping_std=0.0, estimator="bootstrap", physical=True,
+                                 mode_number=1)
+    row = format_table(with_modes(result, [lonely])).splitlines()[2]
+    assert "± 0.0000" not in row and "± 0.000" not in row
+    assert row.count("n/a") == 2
+
+
+@pytest.mark.parametrize("show_all", [False, True])
+def test_table_columns_are_aligned(result, show_all):
+    lines = format_table(result, show_all=show_all).splitlines()[:-1]
     assert len({len(line) for line in lines}) == 1
     ends = {line.index("±") for line in lines[2:]}
     assert len(ends) == 1
@@ -559,4 +582,29 @@ def test_table_columns_are_aligned(result):
 def test_table_of_a_run_without_modes(result):
     text = format_table(with_modes(result, []))
     assert "no mode" in text
-    assert text.splitlines()[-1].startswith("0 physical of 0 clusters")
+    assert text.splitlines()[-1].startswith("0 physical modes;")
+
+
+# -------------------------------------------------------------------------------- mode numbers
+
+
+def test_physical_modes_are_numbered_from_one_by_frequency(result, data):
+    physical = sorted(result.physical_modes, key=lambda m: m.frequency_hz)
+    assert [m.mode_number for m in physical] == list(range(1, len(physical) + 1))
+    assert all(m.mode_number is None for m in result.modes if not m.physical)
+    content = report_dict(result, data)
+    assert [m["mode_number"] for m in content["modes"] if m["physical"]] == [
+        m.mode_number for m in physical]
+    validate_report(content)
+
+
+def test_a_report_without_mode_numbers_is_numbered_when_read(result, data):
+    from automodal.report_model import Report
+
+    content = report_dict(result, data)
+    for m in content["modes"]:
+        del m["mode_number"]
+    old = Report.from_dict(content)
+    assert [m.mode_number for m in old.modes] == [
+        m["mode_number"] for m in report_dict(result, data)["modes"]]
+    assert list(old.mode_table().numbers) == [m.mode_number or 0 for m in old.modes]

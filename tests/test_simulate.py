@@ -392,10 +392,11 @@ def test_cli_bad_usage_exits_2(tmp_path, args):
     assert not out.exists() and not (tmp_path / "bad.modes.json").exists()
 
 
-def test_cli_missing_folder_exits_2(tmp_path):
-    result = CliRunner().invoke(main, ["simulate", str(tmp_path / "no" / "x.h5")])
+def test_cli_folder_that_cannot_be_made_exits_2(tmp_path):
+    (tmp_path / "file").write_text("")
+    result = CliRunner().invoke(main, ["simulate", str(tmp_path / "file" / "no" / "x.h5")])
     assert result.exit_code == 2
-    assert "does not exist" in result.output
+    assert "is not a folder" in result.output
 
 
 def test_cli_help_has_example():

@@ -30,7 +30,7 @@ from typing import Any
 
 from automodal import __version__
 from automodal.app.monitoring import baseline_identity
-from automodal.app.run import check_jobs, run_file
+from automodal.app.run import check_jobs, is_batch_input, run_file
 from automodal.errors import InputError
 from automodal.io.atomic import atomic_path
 from automodal.io.json_safe import json_safe
@@ -156,13 +156,6 @@ class BatchResult:
 
 
 # ------------------------------------------------------------------------------ inputs
-
-
-def is_batch_input(spec: str) -> bool:
-    """Whether an INPUT asks for a batch: an existing folder, or a glob pattern that is
-    not itself an existing file."""
-    p = Path(spec)
-    return p.is_dir() or (not p.exists() and glob.has_magic(spec))
 
 
 def expand_inputs(spec: str, exclude: str | os.PathLike[str] | None = None) -> list[Path]:

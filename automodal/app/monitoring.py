@@ -81,6 +81,9 @@ class ModeCheck:
         Among ``"frequency"``, ``"shape"``, ``"missing"``.
     baseline_id, id : int or None
         Mode ids in the baseline and in today's report.
+    baseline_mode_number, mode_number : int or None
+        Mode numbers (``mode_number`` of the reports: the physical modes 1, 2, ... by
+        frequency) in the baseline and today; messages name a mode by its baseline number.
     baseline_frequency_hz, frequency_hz : float or None
         Central frequencies.
     shift_hz, relative_shift : float or None
@@ -113,6 +116,8 @@ class ModeCheck:
     baseline_damping_ratio: float | None = None
     damping_ratio: float | None = None
     message: str = ""
+    baseline_mode_number: int | None = None
+    mode_number: int | None = None
 
     def to_dict(self, non_finite: list[str] | None = None, where: str = "") -> dict[str, Any]:
         """Plain-JSON form (non-finite numbers as ``None``, their fields added to
@@ -296,7 +301,7 @@ def _matched_entry(
         reasons.append("frequency")
     if math.isfinite(mac) and mac < th.min_mac:
         reasons.append("shape")
-    label = f"mode {int(base.ids[i])} ({fb:.4g} Hz in the baseline)"
+    label = f"mode {int(base.numbers[i])} ({fb:.4g} Hz in the baseline)"
     if reasons:
         parts = []
         if "frequency" in reasons:
@@ -325,13 +330,15 @@ def _matched_entry(
         baseline_damping_ratio=float(base.damping_ratio[i]),
         damping_ratio=float(cur.damping_ratio[j]),
         message=message,
+        baseline_mode_number=int(base.numbers[i]),
+        mode_number=int(cur.numbers[j]),
     )
 
 
 def _missing_entry(base: ModeTable, i: int, cur_all: ModeTable, th: Thresholds) -> ModeCheck:
     """A baseline mode with no physical partner; names a non-physical cluster near it."""
     fb = float(base.frequency_hz[i])
-    message = f"mode {int(base.ids[i])} ({fb:.4g} Hz in the baseline): missing"
+    message = f"mode {int(base.numbers[i])} ({fb:.4g} Hz in the baseline): missing"
     near = np.flatnonzero(
         ~cur_all.physical
         & (np.abs(cur_all.frequency_hz - fb) <= th.match_max_relative_shift * abs(fb))
@@ -351,6 +358,7 @@ def _missing_entry(base: ModeTable, i: int, cur_all: ModeTable, th: Thresholds) 
         frequency_hz=None,
         baseline_damping_ratio=float(base.damping_ratio[i]),
         message=message,
+        baseline_mode_number=int(base.numbers[i]),
     )
 
 
@@ -366,7 +374,9 @@ def _new_entry(cur: ModeTable, j: int) -> ModeCheck:
         baseline_frequency_hz=None,
         frequency_hz=fc,
         damping_ratio=float(cur.damping_ratio[j]),
-        message=f"mode {int(cur.ids[j])} ({fc:.4g} Hz): new, not in the baseline",
+        message=f"new mode at {fc:.4g} Hz (mode {int(cur.numbers[j])} of this test), "
+                "not in the baseline",
+        mode_number=int(cur.numbers[j]),
     )
 
 
@@ -424,6 +434,7 @@ def build_history(
         labels=[s[1] for s in stamped],
         baseline_label=str(baseline_label),
         mode_ids=base.ids.copy(),
+        mode_numbers=base.numbers.copy(),
         baseline_frequency_hz=base.frequency_hz.copy(),
         baseline_damping_ratio=base.damping_ratio.copy(),
         frequency_hz=np.full((T, M), np.nan),

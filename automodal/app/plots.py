@@ -487,7 +487,7 @@ def mode_shapes(
                              spread)
         zeta = mode.damping_ratio
         damping = f", ζ {100 * zeta:.2f} %" if zeta is not None else ""
-        ax.set_title(f"mode {mode.id}: {_hz(mode.frequency_hz)}{damping}",
+        ax.set_title(f"mode {mode.mode_number or '-'}: {_hz(mode.frequency_hz)}{damping}",
                      fontsize=8)
     how = ("real part on the sensor geometry; thin bars: ± the bootstrap spread" if geometry
            else "real part and magnitude by channel; error bars: ± the bootstrap spread")
@@ -569,15 +569,13 @@ def trend(history: History, *, fig: Figure | SubFigure | None = None) -> Figure 
         baseline in % with its bootstrap 95 % band and the alarm floor
         ``±min_relative_shift`` dashed; below, the damping ratio in % with its band. Flagged
         points are ringed in red (``gid="flagged"``), missing modes drawn as red crosses at
-        0 % (``gid="missing"``).
+        0 % (``gid="missing"``). When a report has no test date (its time is when the
+        report was made, and a batch makes them all within minutes) the x axis is the
+        reports' order instead of time, with a note saying so.
     """
-    import datetime as dt
-
     fig = _canvas(fig, (10.0, 6.5))
     ax_f, ax_d = fig.subplots(2, 1, sharex=True)
-    times = [dt.datetime.fromisoformat(t.replace("Z", "+00:00")).replace(tzinfo=None)
-             for t in history.times]
-    x = np.array(times, dtype="datetime64[s]")
+    x, x_label = _trend_axis(history, ax_d)
     flagged_label, missing_label = "flagged", "missing"
     for m in range(history.n_modes):
         color = f"C{m % 10}"
@@ -586,7 +584,7 @@ def trend(history: History, *, fig: Figure | SubFigure | None = None) -> Figure 
         band = 100.0 * (history.frequency_ci95_hz[:, m, :] - fb) / fb
         zeta = 100.0 * history.damping_ratio[:, m]
         zband = 100.0 * history.damping_ci95[:, m, :]
-        label = f"mode {int(history.mode_ids[m])} ({_hz(fb)})"
+        label = f"mode {int(history.mode_numbers[m])} ({_hz(fb)})"
         for ax, y, b in ((ax_f, rel, band), (ax_d, zeta, zband)):
             ax.plot(x, y, "o-", color=color, ms=3, lw=1.0, label=label if ax is ax_f else None)
             ax.fill_between(x, b[:, 0], b[:, 1], color=color, alpha=0.2, lw=0)
@@ -606,7 +604,7 @@ def trend(history: History, *, fig: Figure | SubFigure | None = None) -> Figure 
     ax_f.axhline(0.0, color="0.75", lw=0.6, zorder=0)
     ax_f.set_ylabel("frequency change (%)")
     ax_d.set_ylabel("damping ratio (%)")
-    ax_d.set_xlabel("time (UTC); bands: bootstrap 95 % intervals; dashed: alarm floor")
+    ax_d.set_xlabel(f"{x_label}; bands: bootstrap 95 % intervals; dashed: alarm floor")
     if not history.n_modes:
         ax_f.text(0.5, 0.5, "the baseline has no physical mode", ha="center", va="center",
                   transform=ax_f.transAxes)
@@ -621,6 +619,26 @@ def trend(history: History, *, fig: Figure | SubFigure | None = None) -> Figure 
     fig.suptitle(f"Modes over time against {Path(history.baseline_label).name}: "
                  f"{n_flagged} of {history.n_times} tests flagged", fontsize=10)
     return fig
+
+
+def _trend_axis(history: History, ax: Axes) -> tuple[np.ndarray, str]:
+    """The x values of :func:`trend` and their label: the test dates (UTC) when every
+    report has one, else the reports' order 1, 2, ... (ticks named by the reports when
+    few), since times of making reports do not space tests apart."""
+    import datetime as dt
+
+    undated = sum(s != "test_date" for s in history.time_sources)
+    if not undated:
+        times = [dt.datetime.fromisoformat(t.replace("Z", "+00:00")).replace(tzinfo=None)
+                 for t in history.times]
+        return np.array(times, dtype="datetime64[s]"), "test date (UTC)"
+    x = np.arange(1, history.n_times + 1)
+    if history.n_times <= 30:
+        ax.set_xticks(x, [Path(label).stem for label in history.labels])
+    ax.text(0.0, -0.38, f"{undated} of {history.n_times} reports have no test date (input "
+            "attribute test_date): reports in order, at equal spacing", fontsize=8,
+            color="tab:red", transform=ax.transAxes, gid="no-test-date")
+    return x, "report, in order of test date or else of making"
 
 
 # ------------------------------------------------------------------------------ saving

@@ -10,6 +10,7 @@ many workers; 0 or negative is refused.
 
 from __future__ import annotations
 
+import glob
 import os
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -27,7 +28,7 @@ if TYPE_CHECKING:
     from automodal.settings import Settings
     from automodal.tracking import Thresholds
 
-__all__ = ["RunOutcome", "check_jobs", "read_input", "run_file", "save"]
+__all__ = ["RunOutcome", "check_jobs", "is_batch_input", "read_input", "run_file", "save"]
 
 
 @dataclass
@@ -70,6 +71,14 @@ def check_jobs(jobs: int | None) -> int | None:
     if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
         raise InputError(f"jobs must be an integer >= 1 (or None: automatic), not {jobs!r}")
     return jobs
+
+
+def is_batch_input(spec: str) -> bool:
+    """Whether an INPUT asks for a batch (:mod:`automodal.app.batch`): an existing folder,
+    or a glob pattern that is not itself an existing file. Here, not in the batch module,
+    so that a run on one file does not import the batch machinery."""
+    p = Path(spec)
+    return p.is_dir() or (not p.exists() and glob.has_magic(spec))
 
 
 def read_input(path: str | os.PathLike[str]) -> FRFData:

@@ -2,14 +2,20 @@
 
 from __future__ import annotations
 
+import os
 import sys
 import traceback
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from pathlib import Path
+from typing import TYPE_CHECKING
 
 import click
 
 from automodal.errors import InputError
+
+if TYPE_CHECKING:
+    from automodal.tracking import Thresholds
 
 EXIT_OK = 0
 EXIT_INTERNAL = 1
@@ -47,6 +53,31 @@ def exit_on_error(debug: bool = False) -> Iterator[None]:
         sys.exit(EXIT_INTERNAL)
 
 
+def check_output_folder(path: str | os.PathLike[str], what: str) -> None:
+    """Refuse, before any work, an output whose folder can be neither found nor made.
+
+    Every command makes the missing folders of its outputs when it writes them (as
+    ``mkdir -p`` would); the nearest folder above ``path`` that exists must therefore be a
+    folder, and writable.
+
+    Raises
+    ------
+    InputError
+        Naming ``path`` (``what`` says which output it is, e.g. ``"report"``).
+    """
+    parent = Path(os.path.abspath(path)).parent
+    folder = parent
+    while not folder.exists() and folder != folder.parent:
+        folder = folder.parent
+    if not folder.is_dir():
+        raise InputError(f"cannot make the {what}'s folder: {folder} is not a folder",
+                         os.fspath(path))
+    if not os.access(folder, os.W_OK | os.X_OK):
+        problem = (f"the {what}'s folder is not writable" if folder == parent
+                   else f"cannot make the {what}'s folder: {folder} is not writable")
+        raise InputError(problem, os.fspath(path))
+
+
 def debug_option(func: Callable) -> Callable:
     """The ``--debug`` flag: show tracebacks."""
     return click.option("--debug", is_flag=True, help="Show a traceback on errors.")(func)
@@ -76,3 +107,38 @@ def checked_test_date(text: str) -> str:
         raise click.BadParameter(f"{text!r} is not an ISO 8601 date or time, such as"
                                  " 2024-05-01 or 2024-05-01T10:30:00Z", param_hint="--test-date")
     return when
+
+
+def threshold_options(func: Callable) -> Callable:
+    """The alarm thresholds of a baseline check (:class:`automodal.tracking.Thresholds`),
+    ``None`` when not given: ``--shift-sigmas``, ``--min-shift-percent``, ``--min-mac``.
+    Their defaults, named in the help, are those of ``Thresholds`` (a test checks)."""
+    options = [
+        click.option("--shift-sigmas", type=click.FloatRange(min=0), default=None, metavar="K",
+                     help="Alarm when a frequency moved by more than K combined standard "
+                     "deviations of the two runs (and the floor below). Default 5."),
+        click.option("--min-shift-percent", type=click.FloatRange(0, 100), default=None,
+                     metavar="P", help="... and always by more than P % of the baseline "
+                     "frequency: raise it for structures that move with temperature. "
+                     "Default 0.25."),
+        click.option("--min-mac", type=click.FloatRange(0, 1), default=None, metavar="MAC",
+                     help="Alarm when a mode's shape has a MAC below this with the "
+                     "baseline's. Default 0.95."),
+    ]
+    for option in reversed(options):
+        func = option(func)
+    return func
+
+
+def thresholds_from(shift_sigmas: float | None, min_shift_percent: float | None,
+                    min_mac: float | None) -> Thresholds | None:
+    """The :class:`~automodal.tracking.Thresholds` of the options given (the defaults for
+    the others), or ``None`` when none was given."""
+    given = {"k_sigma": shift_sigmas, "min_mac": min_mac,
+             "min_relative_shift": None if min_shift_percent is None else min_shift_percent / 100}
+    given = {k: v for k, v in given.items() if v is not None}
+    if not given:
+        return None
+    from automodal.tracking import Thresholds
+
+    return Thresholds(**given)

@@ -8,6 +8,7 @@ from typing import TYPE_CHECKING
 import click
 
 from automodal.cli._common import (
+    check_output_folder,
     checked_test_date,
     debug_option,
     exit_on_error,
@@ -41,7 +42,7 @@ def summary(output: Path, data: FRFData) -> str:
     quantity = f"{data.quantity} (assumed: not stated in the input)" if assumed else data.quantity
     f = data.frequency
     text = (f"{output}: {data.n_outputs} output(s) x {data.n_inputs} input(s), {quantity}, "
-            f"{data.n_freq} lines {f[0]:.6g}-{f[-1]:.6g} Hz")
+            f"{data.n_freq} lines [{f[0]:.6g}, {f[-1]:.6g}] Hz")
     if data.attributes.get("dropped_0hz_line"):
         text += "; 0 Hz line dropped (NaN or 0+0j)"
     return text
@@ -77,8 +78,7 @@ def convert(input_path: str, output: Path, geometry: str | None, test_date: str 
         when = None if test_date is None else checked_test_date(test_date)
         if output.suffix.lower() not in OUTPUT_SUFFIXES:
             raise InputError("the output must be an FRF file with suffix .h5 or .hdf5", output)
-        if not output.parent.is_dir():
-            raise InputError("the folder to write into does not exist", output)
+        check_output_folder(output, "FRF file")
         if Path(input_path).is_dir():
             raise InputError("is a folder, not an input file", input_path)
         from automodal.core.from_time import as_frfdata

@@ -17,8 +17,11 @@ from automodal.cli._common import (
     EXIT_MONITORING,
     EXIT_OK,
     REPORT_SUFFIXES,
+    check_output_folder,
     debug_option,
     exit_on_error,
+    threshold_options,
+    thresholds_from,
 )
 from automodal.errors import InputError
 
@@ -27,6 +30,7 @@ if TYPE_CHECKING:
     from automodal.app.run import RunOutcome
     from automodal.report_model import Report
     from automodal.settings import Settings
+    from automodal.tracking import Thresholds
 
 
 def _check_outputs(outputs: tuple[str, ...]) -> None:
@@ -35,11 +39,7 @@ def _check_outputs(outputs: tuple[str, ...]) -> None:
             raise InputError(
                 "unknown report type: the suffix must be .json or .h5", out
             )
-        parent = Path(out).parent
-        if not parent.is_dir():
-            raise InputError("the report's folder does not exist", out)
-        if not os.access(parent, os.W_OK | os.X_OK):
-            raise InputError("the report's folder is not writable", out)
+        check_output_folder(out, "report")
 
 
 @contextmanager
@@ -75,23 +75,24 @@ def read_baseline(path: str) -> Report:
 
 
 def _batch_outdir(outputs: tuple[str, ...]) -> Path:
-    """The one ``-o OUTDIR`` of a batch run (made by the batch when missing)."""
+    """The one ``-o OUTDIR`` of a batch run (made by the batch when missing, with the
+    folders above it)."""
     if len(outputs) != 1:
         raise InputError("a batch run (a folder or a glob as INPUT) needs exactly one -o OUTDIR")
     out = Path(outputs[0])
     if out.exists() and not out.is_dir():
         raise InputError("is not a folder: a batch run writes its reports into -o OUTDIR",
                          str(out))
-    if not out.parent.is_dir():
-        raise InputError("the output folder's parent does not exist", str(out))
-    if out.is_dir() and not os.access(out, os.W_OK | os.X_OK):
+    if not out.exists():
+        check_output_folder(out, "output folder")
+    elif not os.access(out, os.W_OK | os.X_OK):
         raise InputError("the output folder is not writable", str(out))
     return out
 
 
 def _run_batch(input_path: str, outputs: tuple[str, ...], settings: Settings,
-               baseline: Report | None,
-               baseline_path: str | None, report_format: str, force: bool, jobs: int | None,
+               baseline: Report | None, baseline_path: str | None,
+               thresholds: Thresholds | None, report_format: str, force: bool, jobs: int | None,
                dask_scheduler: str | None, as_json: bool, quiet: bool) -> int:
     """Batch mode of ``identify``: every file of a folder or glob; returns the exit status."""
     from automodal.app.batch import expand_inputs, run_batch
@@ -116,7 +117,7 @@ def _run_batch(input_path: str, outputs: tuple[str, ...], settings: Settings,
                 click.echo(f"{outcome.file}: {line}", err=as_json)
 
     result = run_batch(files, outdir, settings, formats=report_format, baseline=baseline,
-                       baseline_path=baseline_path, force=force, jobs=jobs,
+                       baseline_path=baseline_path, thresholds=thresholds, force=force, jobs=jobs,
                        scheduler_address=dask_scheduler, progress=show, spec=input_path)
     if as_json:
         click.echo(result.summary_json.read_text(encoding="utf-8"), nl=False)
@@ -133,15 +134,21 @@ def _run_batch(input_path: str, outputs: tuple[str, ...], settings: Settings,
 @click.option("-o", "--output", "outputs", multiple=True, metavar="REPORT",
               help="Write a report (.json or .h5); may be given several times.")
 @click.option("--json", "as_json", is_flag=True, help="Print the JSON report instead of the table.")
+@click.option("--all", "show_all", is_flag=True,
+              help="List every surviving cluster in the table, the ones not called physical "
+              "too (default: the physical modes only).")
 @click.option("-q", "--quiet", is_flag=True,
-              help="Print nothing unless something is wrong (for cron).")
+              help="Print nothing unless something is wrong (for cron): no table, no "
+              "warnings (they stay in the report), only errors and flagged modes' exit 3.")
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of the bootstrap.")
 @click.option("--bootstrap", "n_bootstrap", type=click.IntRange(2, 100000), default=100,
               show_default=True, help="Bootstrap replicates.")
 @click.option("--band", nargs=2, type=float, metavar="FMIN FMAX", default=None,
               help="Analysed band in Hz (default: the data's span).")
 @click.option("--order", "max_order", type=click.IntRange(4, 5000), default=None,
-              help="Largest model order (states) considered (default: automatic).")
+              help="Largest model order considered, in states: two per mode, so --order 12 "
+              "finds at most 6 modes (default: automatic; a warning says when the order "
+              "stopped the model short of the data).")
 @click.option("--jobs", type=click.IntRange(min=1), default=None,
               help="Cores to use (>= 1): threads for one file's bootstrap, processes across the "
               "files of a batch. Default: automatic (all cores when the work pays for them). "
@@ -154,6 +161,7 @@ def _run_batch(input_path: str, outputs: tuple[str, ...], settings: Settings,
 @click.option("--baseline", "baseline_path", type=click.Path(), default=None, metavar="REPORT",
               help="Check the modes against a baseline report: exit 3 when a mode moved, "
               "changed shape or is missing (a 'monitoring' block goes into the report).")
+@threshold_options
 @click.option("--force", is_flag=True,
               help="Batch: identify again files whose report is up to date.")
 @click.option("--format", "report_format", type=click.Choice(["json", "h5", "both"]),
@@ -165,6 +173,7 @@ def identify(
     input_path: str,
     outputs: tuple[str, ...],
     as_json: bool,
+    show_all: bool,
     quiet: bool,
     seed: int,
     n_bootstrap: int,
@@ -174,6 +183,9 @@ def identify(
     plot_dir: str | None,
     geometry_path: str | None,
     baseline_path: str | None,
+    shift_sigmas: float | None,
+    min_shift_percent: float | None,
+    min_mac: float | None,
     force: bool,
     report_format: str,
     dask_scheduler: str | None,
@@ -181,7 +193,10 @@ def identify(
 ) -> None:
     """Identify the modes in INPUT (an automodal FRF file) with no human choice.
 
-    Prints a table of modes (or the JSON report with --json) and writes each -o report.
+    Prints a table of the physical modes, numbered 1, 2, ... by frequency (every cluster
+    with --all; the JSON report with --json), and writes each -o report. The report's
+    warnings (a band edge on a resonance, reciprocity assumed, lines left out, ...) follow
+    the table on stderr, one line each; --quiet and --json leave them in the report only.
 
     INPUT may also be a folder or a quoted glob: a batch run, one report per file in the
     folder -o OUTDIR with summary.json and summary.csv; files whose report is up to date
@@ -200,7 +215,7 @@ def identify(
       automodal identify 'incoming/*.h5' -o reports/ --baseline baseline.json --quiet
     """
     with exit_on_error(debug), _quiet_warnings(debug):
-        from automodal.app.batch import is_batch_input
+        from automodal.app.run import is_batch_input
         from automodal.settings import Settings
 
         settings = Settings(
@@ -217,6 +232,10 @@ def identify(
             raise InputError("--dask-scheduler is for batch runs (a folder or a glob as INPUT)")
         if not batch:
             _check_outputs(outputs)
+        thresholds = thresholds_from(shift_sigmas, min_shift_percent, min_mac)
+        if thresholds is not None and not baseline_path:
+            raise InputError("--shift-sigmas, --min-shift-percent and --min-mac are "
+                             "thresholds of the --baseline check: give --baseline too")
         baseline = read_baseline(baseline_path) if baseline_path else None
         geometry = None
         if geometry_path:
@@ -225,13 +244,14 @@ def identify(
             geometry = read_geometry(geometry_path)
         if batch:
             sys.exit(_run_batch(input_path, outputs, settings, baseline, baseline_path,
-                                report_format, force, jobs, dask_scheduler, as_json, quiet))
+                                thresholds, report_format, force, jobs, dask_scheduler,
+                                as_json, quiet))
         from automodal.app.run import run_file
         from automodal.io.report import format_table
 
         def run(progress: Callable[[int], None] | None = None) -> RunOutcome:
             return run_file(input_path, settings, outputs, baseline, baseline_path,
-                            progress=progress, geometry=geometry)
+                            thresholds, progress=progress, geometry=geometry)
 
         if not quiet and sys.stderr.isatty():
             with click.progressbar(length=n_bootstrap, label="bootstrap", file=sys.stderr) as bar:
@@ -247,7 +267,9 @@ def identify(
 
             click.echo(json.dumps(outcome.report.to_dict(), indent=2))
         elif not quiet:
-            click.echo(format_table(outcome.result))
+            click.echo(format_table(outcome.result, show_all=show_all))
+            for warning in outcome.report.warnings:
+                click.echo(f"automodal: warning: {warning}", err=True)
         check = outcome.check
         if check is not None and not quiet:
             for entry in check.flagged_entries:

@@ -7,7 +7,7 @@ from typing import TYPE_CHECKING
 
 import click
 
-from automodal.cli._common import debug_option, exit_on_error
+from automodal.cli._common import check_output_folder, debug_option, exit_on_error
 from automodal.errors import InputError
 
 if TYPE_CHECKING:
@@ -22,13 +22,12 @@ def default_output(report: str) -> Path:
 
 
 def _check_output(out: Path) -> None:
-    """Refuse an unknown figure format or a missing folder, before any work."""
+    """Refuse an unknown figure format or a folder that cannot be made, before any work."""
     if out.suffix.lower() not in FIGURE_SUFFIXES:
         raise InputError(
             f"unknown figure type {out.suffix or '(none)'!r}: use .png, .svg or .pdf", str(out)
         )
-    if not out.parent.is_dir():
-        raise InputError("the figure's folder does not exist", str(out))
+    check_output_folder(out, "figure")
 
 
 def _missing(report_path: str, arrays: ReportArrays) -> str | None:

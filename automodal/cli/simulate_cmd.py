@@ -9,12 +9,12 @@ import numpy as np
 from click.core import ParameterSource
 
 from automodal.cli._common import (
+    check_output_folder,
     checked_test_date,
     debug_option,
     exit_on_error,
     test_date_option,
 )
-from automodal.errors import InputError
 from automodal.frfdata import QUANTITIES
 
 
@@ -81,7 +81,7 @@ def _range(values: np.ndarray, fmt: str) -> str:
     if values.size == 0:
         return "-"
     lo, hi = format(values.min(), fmt), format(values.max(), fmt)
-    return lo if lo == hi else f"{lo}-{hi}"
+    return lo if lo == hi else f"[{lo}, {hi}]"
 
 
 @click.command(
@@ -173,8 +173,7 @@ def simulate(output: Path, system_kind: str, dof: int, grid_size: tuple[int, int
     from automodal.io.modes_file import write_modes_json
 
     with exit_on_error(debug):
-        if not output.parent.is_dir():
-            raise InputError("the folder to write into does not exist", output)
+        check_output_folder(output, "FRF file")
         when = None if test_date is None else checked_test_date(test_date)
         if system_kind == "chain":
             system = sim.chain(dof)
@@ -231,7 +230,7 @@ def simulate(output: Path, system_kind: str, dof: int, grid_size: tuple[int, int
             click.echo(
                 f"{output}: {system.meta['name']}, {_count(len(out), 'output')} x "
                 f"{_count(len(inp), 'input')}, "
-                f"{quantity}, {lines} lines {freq[0]:.4g}-{freq[-1]:.4g} Hz, {what}, "
+                f"{quantity}, {lines} lines [{freq[0]:.4g}, {freq[-1]:.4g}] Hz, {what}, "
                 f"seed {seed_used}; {mpath.name}: {modes.n_modes} modes "
                 f"({in_band.sum()} in band, {_range(modes.frequency_hz, '.4g')} Hz, "
                 f"zeta {_range(100 * modes.damping_ratio, '.2f')} %)"

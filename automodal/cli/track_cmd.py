@@ -2,11 +2,20 @@
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 import click
 
-from automodal.cli._common import REPORT_SUFFIXES, debug_option, exit_on_error
+from automodal.cli._common import (
+    EXIT_MONITORING,
+    REPORT_SUFFIXES,
+    check_output_folder,
+    debug_option,
+    exit_on_error,
+    threshold_options,
+    thresholds_from,
+)
 from automodal.errors import InputError
 
 SKIPPED_NAMES = ("summary.json",)
@@ -39,10 +48,13 @@ def report_files(paths: tuple[str, ...]) -> list[str]:
               help="The history file to write (HDF5).")
 @click.option("--baseline", "baseline_path", default=None, metavar="REPORT", type=click.Path(),
               help="Track and check against this report (default: the earliest of REPORTS).")
-@click.option("-q", "--quiet", is_flag=True, help="Print nothing unless something is wrong.")
+@click.option("-q", "--quiet", is_flag=True,
+              help="Print nothing unless something is wrong (errors; exit 3 when flagged).")
+@threshold_options
 @debug_option
 def track(reports: tuple[str, ...], output: str, baseline_path: str | None, quiet: bool,
-          debug: bool) -> None:
+          shift_sigmas: float | None, min_shift_percent: float | None,
+          min_mac: float | None, debug: bool) -> None:
     """Track the physical modes of a baseline through REPORTS over time.
 
     Each report (or every report in a folder) is placed at its test's date (the input
@@ -50,32 +62,39 @@ def track(reports: tuple[str, ...], output: str, baseline_path: str | None, quie
     baseline's physical modes by frequency and shape, and checked as --baseline does in
     identify. The history file holds frequency and damping with their bootstrap spread per
     mode and time, and which modes were flagged; draw it with automodal plot. Prints one
-    line per report.
+    line per report. Modes are named by their number in the baseline (mode 1, 2, ... by
+    frequency), as in identify's table.
+
+    Exit status 3 when a mode of any report was flagged (as identify --baseline), 2 for
+    a report that cannot be read, 0 otherwise. Give --baseline: without it the earliest
+    report is the baseline, and a series that starts damaged looks healthy.
 
     \b
     Examples:
-      automodal track reports/ -o history.h5
-      automodal track reports/*.json --baseline baseline.json -o history.h5
+      automodal track reports/ --baseline baseline.json -o history.h5
+      automodal track reports/*.json --baseline base.json -o history.h5 --min-shift-percent 1
       automodal plot history.h5
     """
     with exit_on_error(debug):
         out = Path(output)
-        if not out.parent.is_dir():
-            raise InputError("the history file's folder does not exist", str(out))
+        check_output_folder(out, "history file")
         from automodal.app.monitoring import history_of_files
         from automodal.io.history import write_history
 
         files = report_files(reports)
         if not files:
             raise InputError("no report found", " ".join(reports))
-        history = history_of_files(files, baseline_path)
+        history = history_of_files(files, baseline_path,
+                                   thresholds_from(shift_sigmas, min_shift_percent, min_mac))
         label = history.baseline_label
         write_history(out, history)
         if not quiet:
             for t in range(history.n_times):
-                flagged = [f"mode {int(history.mode_ids[m])}" for m in range(history.n_modes)
+                flagged = [f"mode {int(history.mode_numbers[m])}" for m in range(history.n_modes)
                            if history.mode_flagged[t, m]]
                 state = f"flagged: {', '.join(flagged)}" if flagged else "ok"
                 click.echo(f"{history.times[t]}  {history.labels[t]}: {state}")
             click.echo(f"{history.n_times} reports, {history.n_modes} modes tracked against "
                        f"{label}; {int(history.flagged.sum())} flagged; written to {out}")
+        if history.flagged.any():
+            sys.exit(EXIT_MONITORING)

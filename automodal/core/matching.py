@@ -40,6 +40,9 @@ class ModeTable:
         Mode shapes (NaN where unknown; ``n_channels`` may be 0).
     cluster : ndarray of int
         Cluster of each mode; the members of a near-repeated cluster share it.
+    numbers : ndarray of int, optional
+        Mode numbers: the physical modes 1, 2, ... by frequency, 0 for the others (what
+        messages call a mode). Default: so numbered from ``physical`` and the frequencies.
     """
 
     ids: np.ndarray
@@ -52,6 +55,16 @@ class ModeTable:
     physical: np.ndarray
     shapes: np.ndarray
     cluster: np.ndarray
+    numbers: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        if self.numbers is None:
+            numbers = np.zeros(self.ids.size, dtype=int)
+            order = np.argsort(np.where(np.isfinite(self.frequency_hz), self.frequency_hz,
+                                        np.inf), kind="stable")
+            physical = order[self.physical[order]]
+            numbers[physical] = np.arange(1, physical.size + 1)
+            self.numbers = numbers
 
     @property
     def n_modes(self) -> int:

@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from automodal.core import subspace
+from automodal.core.filters import running_max, running_min
 from automodal.core.magnitude import (
     log_magnitude,
     mean_magnitude,
@@ -298,16 +299,14 @@ def count_peaks(H: np.ndarray, window: int = 5) -> int:
     median absolute second difference; :mod:`automodal.core.magnitude`). On pure noise
     the roughness is large and few "peaks" count, which keeps the scan short.
     """
-    from scipy.ndimage import maximum_filter1d, minimum_filter1d
-
     mag = mean_magnitude(H)
     if not np.any(mag > 0):
         return 0
     logm = log_magnitude(mag, 1e-12)
     thr = peak_threshold(roughness(logm))
     size = 2 * window + 1
-    is_max = logm >= maximum_filter1d(logm, size, mode="nearest")
-    rise = logm - minimum_filter1d(logm, 8 * size, mode="nearest")
+    is_max = logm >= running_max(logm, size)
+    rise = logm - running_min(logm, 8 * size)
     return int(np.count_nonzero(is_max & (rise > thr)))
 
 

@@ -31,6 +31,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from automodal.core.bilinear import d2c
+from automodal.core.filters import running_median
 
 # ---------------------------------------------------------------------------------------
 # Sizes
@@ -779,14 +780,12 @@ def envelope_weights(H: np.ndarray, window: float = 0.1) -> np.ndarray:
     0.70 to 0.31 (10 DOF, 5 % noise) and from 0.56 to 0.20 (12 DOF seen by 4 sensors),
     and the modes that unweighted fits missed at the top of the band were found.
     """
-    from scipy.ndimage import median_filter
-
     N = H.shape[0]
     mag = np.linalg.norm(H.reshape(N, -1), axis=1)
     floor = np.max(mag) * 1e-12 if np.max(mag) > 0 else 1.0
     logm = np.log(np.maximum(mag, floor))
     size = max(3, int(round(window * N)) | 1)
-    env = median_filter(logm, size=size, mode="nearest")
+    env = running_median(logm, size)
     c = np.exp(-2.0 * (env - np.max(env)))
     return c / np.mean(c)
 

@@ -171,10 +171,14 @@ def summarise_clusters(
 
 
 def _numbered(modes: list[IdentifiedMode]) -> list[IdentifiedMode]:
-    """The modes sorted by frequency, ``id`` from 1."""
-    modes.sort(key=lambda m: m.frequency_hz)
+    """The modes sorted by frequency, ``id`` from 1; the physical ones also numbered from 1
+    (``mode_number``), the others ``None``."""
+    modes.sort(key=lambda m: (not np.isfinite(m.frequency_hz), np.nan_to_num(m.frequency_hz)))
+    physical = 0
     for i, m in enumerate(modes, start=1):
         m.id = i
+        physical += m.physical
+        m.mode_number = physical if m.physical else None
     return modes
 
 

@@ -19,6 +19,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from automodal.core.filters import running_median
+
 MODEL_PRECISION = 1e-7
 """Relative accuracy of an identified model on exact data (about ``sqrt(eps)`` of the Gram
 path, with margin): the order test adds ``(MODEL_PRECISION * rms_ij)^2`` to each entry's
@@ -78,12 +80,10 @@ def whitening(
     scales : ndarray, shape (ny,)
         ``sqrt(a_i)``: dividing output ``i`` by it gives unit noise (up to the line weight).
     """
-    from scipy.ndimage import median_filter
-
     v, a = separable_variance(variance)
     if smooth > 0 and v.size >= 3:
         size = max(3, int(round(smooth * v.size)) | 1)
-        v = np.exp(median_filter(np.log(v), size=size, mode="nearest"))
+        v = np.exp(running_median(np.log(v), size))
     w = 1.0 / v
     return w / np.mean(w), np.sqrt(a)
 

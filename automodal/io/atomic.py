@@ -16,7 +16,9 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
     The temporary file is in the same folder as ``path`` (so that the final rename is atomic)
     and is named ``.{name}.{random}.tmp{suffix}``: it is hidden, and keeps the suffix of
     ``path`` so that writers which look at the suffix (h5py, JSON, matplotlib) still work.
-    The context manager does not create the temporary file; the block must.
+    The context manager does not create the temporary file; the block must. Missing
+    folders above ``path`` are made first (as every command of automodal does for its
+    outputs, ``docs/cli.md``).
 
     On success the temporary file is flushed to disk (``fsync``) and renamed onto ``path``
     with :func:`os.replace`. If the block raises (or the fsync or rename fails), the
@@ -38,6 +40,7 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
     ...     tmp.write_text("{}")
     """
     target = Path(path)
+    target.parent.mkdir(parents=True, exist_ok=True)
     tmp = target.with_name(f".{target.name}.{secrets.token_hex(6)}.tmp{target.suffix}")
     try:
         yield tmp

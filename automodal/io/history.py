@@ -11,6 +11,8 @@ dataset                                    shape       meaning
                                                        ``created``; the report's path
 ``/flagged``, ``/n_new``                   (T,)        any mode flagged; new physical modes
 ``/modes/id``                              (M,)        the baseline's mode ids
+``/modes/number``                          (M,)        their mode numbers (1, 2, ...;
+                                                       absent in older files: 1..M)
 ``/modes/baseline_frequency_hz``,          (M,)        the baseline's values
 ``/modes/baseline_damping_ratio``
 ``/frequency_hz``, ``/frequency_std_hz``,  (T, M)      per report and mode; NaN when missing
@@ -81,6 +83,7 @@ def write_history(path: str | os.PathLike[str], history: History) -> Path:
         f.create_dataset("n_new", data=np.asarray(history.n_new, dtype=np.int64))
         for name, attr in _MODES.items():
             f.create_dataset(f"modes/{name}", data=np.asarray(getattr(history, attr)))
+        f.create_dataset("modes/number", data=np.asarray(history.mode_numbers, dtype=np.int64))
         for name in _TABLES:
             f.create_dataset(name, data=np.asarray(getattr(history, name)))
     return target
@@ -120,6 +123,8 @@ def read_history(path: str | os.PathLike[str]) -> History:
             values = {attr: [_text(x) for x in f[name][()]] for name, attr in _STRINGS.items()}
             values.update({name: f[name][()] for name in _ROWS})
             values.update({attr: f[f"modes/{name}"][()] for name, attr in _MODES.items()})
+            if "modes/number" in f:
+                values["mode_numbers"] = f["modes/number"][()]
             values.update({name: f[name][()] for name in _TABLES})
             values["baseline_label"] = _text(f.attrs.get("baseline", ""))
             values["thresholds"] = Thresholds.from_dict(json.loads(_text(f.attrs["thresholds"])))

@@ -42,7 +42,7 @@ from automodal.report_model import (
     frequency_key,
     utc_now,
 )
-from automodal.result import PoleTable, Result
+from automodal.result import IdentifiedMode, PoleTable, Result
 
 if TYPE_CHECKING:
     from automodal.core.stabilization import StabilizationPoles
@@ -361,6 +361,8 @@ def _write_modes(group: h5py.Group, modes: list[ReportMode], n_outputs: int) -> 
         pairs = as_floats([x for m in modes for x in getattr(m, key)])
         group.create_dataset(key, data=pairs.reshape(n, 2))
     group.create_dataset("physical", data=np.array([m.physical for m in modes], dtype=bool))
+    group.create_dataset("mode_number", data=np.array([m.mode_number or 0 for m in modes],
+                                                      dtype=np.int64))
     real = as_floats([x for m in modes for x in m.shape_real])
     imag = as_floats([x for m in modes for x in m.shape_imag])
     group.create_dataset("mode_shape", data=(real + 1j * imag).reshape(n, n_outputs))
@@ -564,35 +566,31 @@ def _check_header(report: Any) -> None:
 # ------------------------------------------------------------------------------ the table
 
 
-def format_table(result: Result) -> str:
+def format_table(result: Result, show_all: bool = False) -> str:
     """The modes of a run as an aligned text table with a one-line summary.
 
     Parameters
     ----------
     result : Result
+    show_all : bool
+        List every surviving cluster, the ones not called physical too (``mode`` ``-``,
+        class ``not physical``); default only the physical modes.
 
     Returns
     -------
     str
-        A header, one row per mode sorted by frequency (id, frequency in Hz ± std, damping
-        in % ± std, physicalness, ``physical`` or ``-``, members, MPC), and a summary
-        line; no trailing newline.
+        A header, one row per mode sorted by frequency (mode number, frequency in Hz ±
+        std, damping in % ± std, physicalness, members, MPC; with ``show_all`` also the
+        class), and a summary line; no trailing newline. A spread that cannot be
+        estimated (a bootstrap cluster of one member) is ``n/a``, not ``± 0``.
     """
-    header = ["id", "frequency (Hz)", "damping (%)", "physicalness", "class", "members", "MPC"]
-    rows = [
-        [
-            str(m.id),
-            f"{m.frequency_hz:.4f} ± {m.frequency_std_hz:.4f}",
-            f"{100 * m.damping_ratio:.3f} ± {100 * m.damping_std:.3f}",
-            f"{m.physicalness:.2f}",
-            "physical" if m.physical else "-",
-            str(m.n_members),
-            f"{m.mpc:.3f}",
-        ]
-        for m in sorted(result.modes, key=frequency_key)
-    ]
+    header = ["mode", "frequency (Hz)", "damping (%)", "physicalness", "members", "MPC"]
+    if show_all:
+        header.insert(4, "class")
+    modes = [m for m in sorted(result.modes, key=frequency_key) if show_all or m.physical]
+    rows = [_table_row(m, show_all) for m in modes]
     widths = [max(len(r[i]) for r in [header, *rows]) for i in range(len(header))]
-    left = {4}
+    left = {4} if show_all else set()
 
     def line(cells: list[str]) -> str:
         parts = [
@@ -601,18 +599,45 @@ def format_table(result: Result) -> str:
         return "  ".join(parts).rstrip()
 
     lines = [line(header), line(["-" * w for w in widths])]
-    lines += [line(r) for r in rows] or ["(no mode survived)"]
-    lines.append(_summary_line(result))
+    empty = "(no mode survived)" if not result.modes else "(no physical mode)"
+    lines += [line(r) for r in rows] or [empty]
+    lines.append(_summary_line(result, show_all))
     return "\n".join(lines)
 
 
-def _summary_line(result: Result) -> str:
-    """``3 physical of 9 clusters; 812 poles in the Trashbox; ...``."""
-    n_bootstrap = result.settings.get("n_bootstrap")
-    parts = [
-        f"{len(result.physical_modes)} physical of {len(result.modes)} clusters",
-        f"{result.trashbox_members} poles in the Trashbox",
+def _table_row(mode: IdentifiedMode, show_all: bool) -> list[str]:
+    """One row of :func:`format_table`."""
+    known = mode.estimator != "bootstrap" or mode.n_members > 1
+
+    def value(x: float, std: float, scale: float, digits: int) -> str:
+        spread = (f"{scale * std:.{digits}f}" if known and math.isfinite(std)
+                  else "n/a".rjust(digits + 2))
+        return f"{scale * x:.{digits}f} ± {spread}"
+
+    row = [
+        str(mode.mode_number) if mode.mode_number is not None else "-",
+        value(mode.frequency_hz, mode.frequency_std_hz, 1.0, 4),
+        value(mode.damping_ratio, mode.damping_std, 100.0, 3),
+        f"{mode.physicalness:.2f}",
+        str(mode.n_members),
+        f"{mode.mpc:.3f}",
     ]
+    if show_all:
+        row.insert(4, "physical" if mode.physical else "not physical")
+    return row
+
+
+def _summary_line(result: Result, show_all: bool = True) -> str:
+    """``6 physical modes; 10 other clusters not shown (--all); 812 poles in the
+    Trashbox; ...``."""
+    n_bootstrap = result.settings.get("n_bootstrap")
+    n_physical = len(result.physical_modes)
+    n_other = len(result.modes) - n_physical
+    parts = [f"{n_physical} physical mode{'s' if n_physical != 1 else ''}"]
+    if n_other:
+        others = f"{n_other} other cluster{'s' if n_other != 1 else ''}"
+        parts.append(f"{others} not physical" if show_all else f"{others} not shown (--all)")
+    parts.append(f"{result.trashbox_members} poles in the Trashbox")
     if n_bootstrap is not None:
         parts.append(f"{n_bootstrap} bootstrap replicates")
     parts.append(f"runtime {result.runtime_s:.1f} s")

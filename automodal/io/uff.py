@@ -240,7 +240,7 @@ def _common_frequency(sets: list[tuple[int, dict[str, Any]]], source: str) -> np
 
 def _axis(x: np.ndarray) -> str:
     """A frequency axis in a few words."""
-    return f"{x.size} lines, {x[0]:g}-{x[-1]:g} Hz"
+    return f"{x.size} lines, [{x[0]:g}, {x[-1]:g}] Hz"
 
 
 # ---------------------------------------------------------------------------- grouping

@@ -1,0 +1,164 @@
+"""What a test engineer sees and does at the command line (issue 15): the table, mode
+numbers, warnings, monitoring options, output folders, and a lean ``identify``."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from click.testing import CliRunner
+
+from automodal.cli import main
+
+SAMPLE = Path(__file__).resolve().parents[1] / "sample_data" / "chain6.h5"
+FAST = ["--bootstrap", "6", "--seed", "1"]
+
+
+def cli(*args: object):
+    """Run the command line in this process; returns click's result (stdout and stderr
+    apart)."""
+    return CliRunner().invoke(main, [str(a) for a in args], catch_exceptions=False)
+
+
+# ------------------------------------------------------------------------------ imports
+
+HEAVY = ("automodal.app.batch", "automodal.app.monitoring", "scipy.stats", "scipy.ndimage",
+         "scipy.signal", "matplotlib", "dask", "joblib")
+
+
+def test_identify_of_one_file_imports_no_heavy_module():
+    """A run on one file imports neither the batch machinery nor libraries it does not use
+    (the imports of ``automodal identify`` are a large share of a small run)."""
+    code = (
+        "import sys\n"
+        "from automodal.cli import main\n"
+        "try:\n"
+        f"    main(['identify', {str(SAMPLE)!r}, '--bootstrap', '4', '--quiet'])\n"
+        "except SystemExit as exc:\n"
+        "    assert exc.code == 0, exc.code\n"
+        f"print(','.join(m for m in {HEAVY!r} if m in sys.modules))\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "", f"imported: {done.stdout.strip()}"
+
+
+# ------------------------------------------------------------------------------ the table
+
+SISO = SAMPLE.with_name("chain8_siso.h5")
+
+
+def test_table_shows_physical_modes_and_warnings_go_to_stderr(tmp_path):
+    out = tmp_path / "r.json"
+    done = cli("identify", SISO, "-o", out, *FAST)
+    assert done.exit_code == 0, done.output
+    report = json.loads(out.read_text())
+    physical = [m for m in report["modes"] if m["physical"]]
+    rows = done.stdout.splitlines()[2:-1]
+    assert len(rows) == len(physical) < len(report["modes"])
+    assert [r.split()[0] for r in rows] == [str(k) for k in range(1, len(physical) + 1)]
+    assert "not shown (--all)" in done.stdout.splitlines()[-1]
+    assert report["warnings"], "the test needs an input that makes a warning"
+    assert done.stderr.splitlines() == [f"automodal: warning: {w}" for w in report["warnings"]]
+
+    every = cli("identify", SISO, "--all", *FAST)
+    assert len(every.stdout.splitlines()[2:-1]) == len(report["modes"])
+    assert "not physical" in every.stdout
+
+
+@pytest.mark.parametrize("flag", ["--quiet", "--json"])
+def test_quiet_and_json_leave_the_warnings_in_the_report(flag):
+    done = cli("identify", SISO, flag, *FAST)
+    assert done.exit_code == 0 and done.stderr == ""
+    if flag == "--quiet":
+        assert done.stdout == ""
+    else:
+        assert json.loads(done.stdout)["warnings"]
+
+
+# ------------------------------------------------------------------------------ consistency
+
+
+def test_every_command_makes_missing_output_folders(tmp_path):
+    """One behaviour for outputs: missing folders are made (as mkdir -p), by every command."""
+    report = tmp_path / "a" / "b" / "r.h5"
+    done = cli("identify", SAMPLE, "-o", report, "--plot", tmp_path / "figs" / "x", *FAST)
+    assert done.exit_code == 0, done.output
+    assert report.is_file() and any((tmp_path / "figs" / "x").iterdir())
+    converted = cli("convert", SAMPLE, tmp_path / "c" / "d" / "x.h5", "-q")
+    assert converted.exit_code == 0 and (tmp_path / "c" / "d" / "x.h5").is_file()
+    drawn = cli("plot", report, "-o", tmp_path / "e" / "f.png")
+    assert drawn.exit_code == 0 and (tmp_path / "e" / "f.png").is_file()
+    tracked = cli("track", report, "-o", tmp_path / "g" / "h.h5", "-q")
+    assert tracked.exit_code == 0 and (tmp_path / "g" / "h.h5").is_file()
+    simulated = cli("simulate", tmp_path / "i" / "s.h5", "--dof", "3")
+    assert simulated.exit_code == 0 and (tmp_path / "i" / "s.h5").is_file()
+    batch = cli("identify", tmp_path / "c" / "d", "-o", tmp_path / "j" / "k", "-q", *FAST)
+    assert batch.exit_code == 0 and (tmp_path / "j" / "k" / "x.json").is_file()
+
+
+@pytest.mark.parametrize("command", [
+    ["identify", SAMPLE, "-o", "{blocker}/sub/r.json"],
+    ["identify", SAMPLE.parent, "-o", "{blocker}/sub"],
+    ["convert", SAMPLE, "{blocker}/x.h5"],
+    ["plot", "{report}", "-o", "{blocker}/f.png"],
+    ["track", "{report}", "-o", "{blocker}/h.h5"],
+    ["simulate", "{blocker}/s.h5"],
+])
+def test_an_output_folder_that_cannot_be_made_is_refused_before_any_work(tmp_path, command):
+    blocker = tmp_path / "blocker"
+    blocker.write_text("a file, not a folder")
+    report = tmp_path / "r.json"
+    report.write_text("{}")
+    args = [str(a).format(blocker=blocker, report=report) for a in command]
+    done = cli(*args)
+    assert done.exit_code == 2
+    lines = done.stderr.splitlines()
+    assert len(lines) == 1 and lines[0].startswith("automodal: error:")
+    assert "is not a folder" in lines[0]
+
+
+@pytest.mark.parametrize("jobs", ["0", "-1", "-2"])
+def test_jobs_below_one_is_refused(jobs):
+    done = cli("identify", SAMPLE, "--jobs", jobs, *FAST)
+    assert done.exit_code == 2 and "--jobs" in done.stderr
+
+
+def test_band_beyond_the_data_is_said_and_a_band_outside_refused():
+    wide = cli("identify", SAMPLE, "--band", "5", "1000", "--json", *FAST)
+    assert wide.exit_code == 0
+    report = json.loads(wide.stdout)
+    hi = report["input"]["band_hz"][1]
+    said = [w for w in report["warnings"] if "reaches beyond the data" in w]
+    assert len(said) == 1 and said[0].startswith("the band [5, 1000] Hz")
+    assert "analysed is [5" in said[0] and f"{hi:g}] Hz" in said[0]
+    inside = cli("identify", SAMPLE, "--band", "5", "20", "--json", *FAST)
+    assert not [w for w in json.loads(inside.stdout)["warnings"] if "beyond" in w]
+    outside = cli("identify", SAMPLE, "--band", "100", "1000", *FAST)
+    assert outside.exit_code == 2 and "band [100, 1000] Hz" in outside.stderr
+
+
+def test_an_order_below_what_the_data_need_is_said():
+    help_text = " ".join(cli("identify", "--help").stdout.split())
+    assert "two per mode" in help_text
+    low = cli("identify", SAMPLE, "--order", "6", "--json", *FAST)
+    assert low.exit_code == 0
+    said = [w for w in json.loads(low.stdout)["warnings"] if "largest model order 6" in w]
+    assert len(said) == 1 and "at most 3 modes" in said[0]
+    enough = cli("identify", SAMPLE, "--order", "40", "--json", *FAST)
+    assert not [w for w in json.loads(enough.stdout)["warnings"] if "model order" in w]
+
+
+def test_no_message_writes_a_range_with_a_dash():
+    """Ranges are written [lo, hi] (a dash reads as a minus sign: "band -5-20 Hz")."""
+    import re
+
+    root = Path(__file__).resolve().parents[1] / "automodal"
+    dashed = re.compile(r"\}-\{[^}]*\}\s*Hz|:g\}-\{|\.\dg\}-\{")
+    found = [f"{p.name}: {line.strip()}" for p in root.rglob("*.py")
+             for line in p.read_text(encoding="utf-8").splitlines() if dashed.search(line)]
+    assert found == []
