@@ -50,3 +50,23 @@ def exit_on_error(debug: bool = False) -> Iterator[None]:
 def debug_option(func: Callable) -> Callable:
     """The ``--debug`` flag: show tracebacks."""
     return click.option("--debug", is_flag=True, help="Show a traceback on errors.")(func)
+
+
+def time_input_options(func: Callable) -> Callable:
+    """``--sample-rate``, ``--forces`` and ``--quantity``: what a file of samples does not say
+    (``docs/time-input.md``)."""
+    from automodal.frfdata import QUANTITIES
+
+    options = [
+        click.option("--sample-rate", type=float, default=None, metavar="HZ",
+                     help="Time input: samples per second, when the file does not carry it "
+                     "(refused if it contradicts the file)."),
+        click.option("--forces", default=None, metavar="CH,...",
+                     help="Time input: the force channels, by name or 0-based position in "
+                     "the file ('none': output-only), when the file does not say."),
+        click.option("--quantity", type=click.Choice(QUANTITIES), default=None,
+                     help="Time input: the response quantity, when the file does not say."),
+    ]
+    for option in reversed(options):
+        func = option(func)
+    return func

@@ -7,7 +7,7 @@ from typing import TYPE_CHECKING
 
 import click
 
-from automodal.cli._common import debug_option, exit_on_error
+from automodal.cli._common import debug_option, exit_on_error, time_input_options
 from automodal.errors import InputError
 
 if TYPE_CHECKING:
@@ -48,19 +48,26 @@ def summary(output: Path, data: FRFData) -> str:
     epilog="""\b
 Examples:
   automodal convert measurement.uff measurement.h5
-  automodal convert frfs.csv test.h5 --quiet""",
+  automodal convert frfs.csv test.h5 --quiet
+  automodal convert hits.npy test.h5 --sample-rate 25600 --forces 1""",
 )
 @click.argument("input_path", metavar="INPUT", type=click.Path())
 @click.argument("output", metavar="OUTPUT.h5", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("-q", "--quiet", is_flag=True, help="Print nothing on success.")
+@time_input_options
 @debug_option
-def convert(input_path: str, output: Path, quiet: bool, debug: bool) -> None:
+def convert(input_path: str, output: Path, quiet: bool, sample_rate: float | None,
+            forces: str | None, quantity: str | None, debug: bool) -> None:
     """Convert INPUT to an automodal FRF file OUTPUT.h5 (docs/frf-file.md).
 
     INPUT is a UFF/UNV file with dataset 58 FRFs (.uff, .unv), a CSV or text table
     (.csv, .txt: frequency, then real/imaginary column pairs, one input), a NumPy archive
-    (.npz: keys frequency and frf) or an FRF file (.h5). OUTPUT is written atomically: it
-    is replaced only once complete. Prints one summary line unless --quiet.
+    (.npz: keys frequency and frf) or an FRF file (.h5); or time records (docs/time-input.md:
+    .npy, .npz, .csv/.tsv/.txt, .mat, .tdms, .uff, .h5), whose FRFs are written with the
+    records themselves in the /time group (sample rate and forces as --sample-rate and
+    --forces said), so that OUTPUT can be identified again without the options. OUTPUT is
+    written atomically: it is replaced only once complete. Prints one summary line unless
+    --quiet.
     """
     with exit_on_error(debug):
         if output.suffix.lower() not in OUTPUT_SUFFIXES:
@@ -69,15 +76,16 @@ def convert(input_path: str, output: Path, quiet: bool, debug: bool) -> None:
             raise InputError("the folder to write into does not exist", output)
         if Path(input_path).is_dir():
             raise InputError("is a folder, not an input file", input_path)
-        from automodal.core.from_time import as_frfdata
+        from automodal.app.run import as_frf_input, read_time_or_frf, time_options
         from automodal.io.frf_file import write_frf
-        from automodal.io.readers import read_any
+        from automodal.timedata import TimeSeries
 
-        data = as_frfdata(read_any(input_path))
+        read = read_time_or_frf(input_path, time_options(sample_rate, forces, quantity))
+        data = as_frf_input(read)
         if isinstance(data.attributes.get("time_analysis"), dict):  # HDF5 has no dict type
             import json
 
             data.attributes["time_analysis"] = json.dumps(data.attributes["time_analysis"])
-        write_frf(output, data)
+        write_frf(output, data, time=read if isinstance(read, TimeSeries) else None)
         if not quiet:
             click.echo(summary(output, data))

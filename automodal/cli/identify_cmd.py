@@ -19,6 +19,7 @@ from automodal.cli._common import (
     REPORT_SUFFIXES,
     debug_option,
     exit_on_error,
+    time_input_options,
 )
 from automodal.errors import InputError
 
@@ -157,6 +158,7 @@ def _run_batch(input_path: str, outputs: tuple[str, ...], settings: Settings,
               default="json", show_default=True, help="Batch: report files per input.")
 @click.option("--dask-scheduler", default=None, metavar="ADDRESS",
               help="Batch: run the files on an existing Dask cluster (tcp://host:8786).")
+@time_input_options
 @debug_option
 def identify(
     input_path: str,
@@ -173,11 +175,16 @@ def identify(
     force: bool,
     report_format: str,
     dask_scheduler: str | None,
+    sample_rate: float | None,
+    forces: str | None,
+    quantity: str | None,
     debug: bool,
 ) -> None:
     """Identify the modes in INPUT (an automodal FRF file) with no human choice.
 
     Prints a table of modes (or the JSON report with --json) and writes each -o report.
+    INPUT may hold FRFs or time records (docs/time-input.md: --sample-rate, --forces and
+    --quantity say what a file of samples does not).
 
     INPUT may also be a folder or a quoted glob: a batch run, one report per file in the
     folder -o OUTDIR with summary.json and summary.csv; files whose report is up to date
@@ -194,6 +201,7 @@ def identify(
       automodal identify test.h5 -o report.h5 --plot figures/
       automodal identify today.h5 -o today.json --baseline baseline.json
       automodal identify 'incoming/*.h5' -o reports/ --baseline baseline.json --quiet
+      automodal identify hits.npy --sample-rate 25600 --forces 1
     """
     with exit_on_error(debug), _quiet_warnings(debug):
         from automodal.app.batch import is_batch_input
@@ -206,7 +214,13 @@ def identify(
             max_order=max_order,
             jobs=jobs,
         )
+        from automodal.app.run import time_options
+
+        options = time_options(sample_rate, forces, quantity)
         batch = is_batch_input(input_path)
+        if batch and options is not None:
+            raise InputError(f"{', '.join(options.given)} are for one file: convert each file "
+                             "with them to an FRF file first (automodal convert)")
         if batch and plot_dir:
             raise InputError("--plot is for one file: draw a batch's reports with automodal plot")
         if not batch and dask_scheduler:
@@ -222,7 +236,7 @@ def identify(
 
         def run(progress: Callable[[int], None] | None = None) -> RunOutcome:
             return run_file(input_path, settings, outputs, baseline, baseline_path,
-                            progress=progress)
+                            progress=progress, options=options)
 
         if not quiet and sys.stderr.isatty():
             with click.progressbar(length=n_bootstrap, label="bootstrap", file=sys.stderr) as bar:
