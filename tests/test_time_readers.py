@@ -402,3 +402,12 @@ def test_realdata_ladisk_impact_npy_reads_time_row_force_response():
     assert ts.sample_rate == pytest.approx(25600.0)
     assert (ts.n_samples, ts.n_outputs, ts.n_inputs) == (25600, 1, 1)
     assert ts.input_names == ["ch1"] and ts.output_names == ["ch2"]
+
+
+@pytest.mark.realdata
+@pytest.mark.skipif(not REALDATA.is_dir(), reason="../shared/realdata is absent")
+def test_realdata_weimar_npy_reads_as_output_only_samples():
+    path = REALDATA / "weimar_steel_frame" / "measurement_1" / "measurement_1.npy"
+    ts = read_any(path, TimeOptions(sample_rate=256.0))
+    assert (ts.n_samples, ts.n_outputs, ts.inputs) == (61440, 6, None)
+    assert "orientation" not in ts.attributes

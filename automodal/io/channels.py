@@ -46,6 +46,7 @@ __all__ = [
     "looks_like_force",
     "parse_forces",
     "rate_from_time",
+    "time_axis",
     "time_unit",
     "to_time_series",
 ]
@@ -205,6 +206,40 @@ def time_unit(name: str) -> float | None:
     if not match:
         return None
     return _TIME_UNITS[(match.group(2) or "").lower()]
+
+
+def time_axis(is_time: list[bool], labels: list[str], what: str) -> tuple[int | None, list[int]]:
+    """Which position of a file's columns is its time axis, and which are channels.
+
+    Parameters
+    ----------
+    is_time : list of bool
+        Per column, whether it is a time axis (by its name, its type or its values).
+    labels : list of str
+        The columns' names, for messages.
+    what : str
+        What holds them, for messages (``"the table"``).
+
+    Returns
+    -------
+    position : int or None
+        The time axis' position, None without one.
+    channels : list of int
+        The other positions.
+
+    Raises
+    ------
+    InputError
+        (no file name) For two time axes, or no channel besides the time axis.
+    """
+    times = [i for i, flag in enumerate(is_time) if flag]
+    if len(times) > 1:
+        raise InputError(f"{', '.join(repr(labels[i]) for i in times)} of {what} are all time "
+                         "axes: keep one")
+    channels = [i for i in range(len(is_time)) if i not in times]
+    if not channels:
+        raise InputError(f"{what} holds only a time axis, no channel")
+    return (times[0] if times else None), channels
 
 
 def rate_from_time(t: np.ndarray, where: str) -> float:

@@ -35,7 +35,7 @@ from typing import Any
 import numpy as np
 
 from automodal.errors import InputError
-from automodal.io.channels import Channels, rate_from_time
+from automodal.io.channels import Channels, rate_from_time, time_axis
 
 __all__ = ["ROLES", "TIME_KEYS", "channels_from_array", "channels_from_named", "is_samples_key",
            "samples_first"]
@@ -128,19 +128,14 @@ def channels_from_array(values: Any, what: str, source_format: str,
     attributes: dict[str, Any] = {"source_format": source_format}
     if transposed:
         attributes["orientation"] = "(channels, samples): read with the longer axis as samples"
-    rising = [i for i in range(n_channels)
-              if samples.shape[0] > 1 and np.all(np.diff(samples[:, i]) > 0)]
-    if len(rising) > 1:
-        raise InputError(f"channels {', '.join(map(str, rising))} of {what} all increase "
-                         "throughout: which is the time axis? keep one")
-    rate, rate_source, time_position = None, "", None
-    if rising:
-        time_position = rising[0]
+    rising = [samples.shape[0] > 1 and bool(np.all(np.diff(samples[:, i]) > 0))
+              for i in range(n_channels)]
+    time_position, keep = time_axis(rising, [f"channel {i}" for i in range(n_channels)],
+                                    f"{what} (increasing throughout)")
+    rate, rate_source = None, ""
+    if time_position is not None:
         where = f"channel {time_position} of {what} (it increases throughout: a time axis)"
         rate, rate_source = rate_from_time(samples[:, time_position], where), where
-    keep = [i for i in range(n_channels) if i != time_position]
-    if not keep:
-        raise InputError(f"{what} holds only a time axis, no channel")
     return Channels(samples=samples[:, keep], names=[labels[i] for i in keep], positions=keep,
                     sample_rate=rate, rate_source=rate_source, attributes=attributes,
                     time_position=time_position)

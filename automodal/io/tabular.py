@@ -37,7 +37,7 @@ import numpy as np
 
 from automodal.errors import InputError
 from automodal.frfdata import QUANTITIES, FRFData, quantity_problem
-from automodal.io.channels import Channels, TimeOptions, rate_from_time, time_unit
+from automodal.io.channels import Channels, TimeOptions, rate_from_time, time_axis, time_unit
 from automodal.io.limits import check_not_real_valued, check_size, check_text_size
 from automodal.io.refusal import describe, read_refusing
 
@@ -205,16 +205,10 @@ def _holds_samples(header: list[str], options: TimeOptions | None, source: str) 
 
 def _samples_table(table: np.ndarray, header: list[str], quantity: str | None) -> Channels:
     """The channels of a table of samples (a time column, if any, gives the rate)."""
-    times = [i for i, name in enumerate(header) if time_unit(name) is not None]
-    if len(times) > 1:
-        raise InputError(f"columns {', '.join(repr(header[i]) for i in times)} are all named "
-                         "like a time: keep one")
-    keep = [i for i in range(len(header)) if i not in times]
-    if not keep:
-        raise InputError("the table has a time column but no channel")
-    rate, rate_source, position = None, "", None
-    if times:
-        position = times[0]
+    position, keep = time_axis([time_unit(name) is not None for name in header], header,
+                               "the table")
+    rate, rate_source = None, ""
+    if position is not None:
         where = f"the time column {header[position]!r}"
         unit = time_unit(header[position]) or 1.0
         rate, rate_source = rate_from_time(table[:, position] * unit, where), where

@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from automodal.errors import InputError
-from automodal.io.channels import Channels, rate_from_time, time_unit
+from automodal.io.channels import Channels, rate_from_time, time_axis, time_unit
 from automodal.io.limits import check_size
 from automodal.io.refusal import describe, read_refusing
 
@@ -85,20 +85,13 @@ def _channels(channels: list[tuple[str, str, np.ndarray, dict[str, Any]]]) -> Ch
     names = [name for _, name, _, _ in channels]
     labels = [f"{group}/{name}" if names.count(name) > 1 else name
               for group, name, _, _ in channels]
-    times = [i for i, (_, name, data, _) in enumerate(channels)
-             if np.asarray(data).dtype.kind == "M" or time_unit(name) is not None]
-    if len(times) > 1:
-        raise InputError(f"channels {', '.join(repr(labels[i]) for i in times)} are all time "
-                         "axes: keep one")
-    keep = [i for i in range(len(channels)) if i not in times]
-    if not keep:
-        raise InputError("the TDMS file holds only a time channel")
+    position, keep = time_axis([np.asarray(data).dtype.kind == "M" or time_unit(name) is not None
+                                for _, name, data, _ in channels], labels, "the TDMS file")
     for i in keep:
         if np.asarray(channels[i][2]).dtype.kind not in "fiu":
             raise InputError(f"channel {labels[i]!r} holds {np.asarray(channels[i][2]).dtype}, "
                              "not numbers")
     rate, rate_source = _rate([channels[i][3] for i in keep], [labels[i] for i in keep])
-    position = times[0] if times else None
     if position is not None:
         where = f"the time channel {labels[position]!r}"
         time_rate = rate_from_time(_seconds(channels[position]), where)
