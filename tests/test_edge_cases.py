@@ -383,8 +383,8 @@ def test_a_reader_that_crashes_is_a_refusal_not_a_dead_process(tmp_path, monkeyp
 
     # the child dies without an answer, as on a segmentation fault in a C library (SIGKILL:
     # no fault handler output in the test log)
-    monkeypatch.setattr(readers, "_read_by_suffix", lambda path: os.kill(os.getpid(),
-                                                                         signal.SIGKILL))
+    monkeypatch.setattr(readers, "_read_by_suffix",
+                        lambda path, options=None: os.kill(os.getpid(), signal.SIGKILL))
     with pytest.raises(InputError, match=r"the reader crashed on the file \(exit code -9\)"):
         read_any(SAMPLE)
 

@@ -590,7 +590,7 @@ def junk_inputs(draw: st.DrawFn) -> Input:
     """A file of junk bytes (random, or a format's signature with nothing valid behind)."""
     content = draw(st.one_of(st.sampled_from(JUNK), st.binary(max_size=300)))
     suffix = draw(st.sampled_from([".h5", ".hdf5", ".uff", ".unv", ".csv", ".txt", ".npz",
-                                   "", ".dat"]))
+                                   "", ".dat", ".npy", ".mat", ".tsv", ".tdms"]))
     return Input(suffix, lambda path: path.write_bytes(content))
 
 
@@ -731,6 +731,37 @@ def uff_inputs(draw: st.DrawFn) -> Input:
     return Input(suffix, make if faults.clean("damage") else draw(damaged(make)))
 
 
+@st.composite
+def sample_inputs(draw: st.DrawFn) -> Input:
+    """Time records without a sample rate of their own unless a time axis gives it: a
+    ``.npy`` array (drawn shape, orientation, dtype and values, maybe a time row, uniform or
+    with a gap), or a CSV table of samples with a time column, maybe damaged."""
+    faults = Faults(draw, ("shape", "values", "time"))
+    n = faults.pick(draw, "shape", [256, 100], [40, 3, 0])
+    shape = faults.pick(draw, "shape", [(n, 2), (2, n), (n,)], [(3, 3), (n, 2, 1), ()])
+    values = draw(arrays(shape, NUMERIC_DTYPES if not faults.clean("values") else ("f8", "f4"),
+                         SPECIAL_VALUES if not faults.clean("values") else ()))
+    time = faults.pick(draw, "time", ["none", "uniform"], ["gap", "constant"])
+    if time != "none" and values.ndim == 2 and values.shape[0] != values.shape[1]:
+        long = max(values.shape)
+        t = np.arange(long) / 100.0
+        if time == "gap":
+            t[long // 2:] += 0.05
+        elif time == "constant":
+            t[:] = 1.0
+        axis = 1 if values.shape[0] == long else 0
+        values = np.concatenate([np.expand_dims(t, axis), values.real.astype(float)], axis=axis)
+    if draw(st.booleans()) or values.ndim != 2 or values.dtype.kind not in "fiu":
+        def make(path: Path) -> None:
+            np.save(path, values)
+
+        return Input(".npy", draw(damaged(make)))
+    table = values if values.shape[0] > values.shape[1] else values.T
+    header = ",".join(["t"] + [f"ch{i}" for i in range(1, table.shape[1])])
+    text = header + "\n" + "\n".join(",".join(repr(float(v)) for v in row) for row in table)
+    return Input(".csv", lambda path: path.write_text(text + "\n", encoding="utf-8"))
+
+
 ANY_INPUT = st.one_of(hdf5_inputs(), hdf5_inputs(), csv_inputs(), npz_inputs(), uff_inputs(),
                       junk_inputs())
 """Every kind of input, HDF5 twice as often."""
@@ -842,6 +873,13 @@ def test_npz_inputs_read_or_are_refused_in_one_line(case: Input) -> None:
 @examples(0.5)
 def test_uff_inputs_read_or_are_refused_in_one_line(case: Input) -> None:
     """Universal files of drawn dataset-58 sets, maybe damaged."""
+    read_written(case)
+
+
+@given(sample_inputs())
+@examples(0.5)
+def test_sample_inputs_read_or_are_refused_in_one_line(case: Input) -> None:
+    """Arrays and tables of samples: orientations, dtypes, special values, time axes."""
     read_written(case)
 
 

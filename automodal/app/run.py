@@ -22,13 +22,16 @@ from automodal.errors import InputError
 if TYPE_CHECKING:
     from automodal.app.monitoring import MonitoringResult
     from automodal.frfdata import FRFData
+    from automodal.io.channels import TimeOptions
     from automodal.io.geometry import Geometry
     from automodal.report_model import Report
     from automodal.result import Result
     from automodal.settings import Settings
+    from automodal.timedata import TimeSeries
     from automodal.tracking import Thresholds
 
-__all__ = ["RunOutcome", "check_jobs", "is_batch_input", "read_input", "run_file", "save"]
+__all__ = ["RunOutcome", "as_frf_input", "check_jobs", "is_batch_input", "read_input",
+           "read_time_or_frf", "run_file", "save", "time_options"]
 
 
 @dataclass
@@ -81,22 +84,67 @@ def is_batch_input(spec: str) -> bool:
     return p.is_dir() or (not p.exists() and glob.has_magic(spec))
 
 
-def read_input(path: str | os.PathLike[str]) -> FRFData:
-    """Read any supported input file as FRFs (:func:`automodal.io.readers.read_any`; time
-    series go through the pipeline's input stage, :func:`automodal.core.from_time.as_frfdata`,
-    here, so that the report describes the FRFs that were analysed).
+def time_options(sample_rate: float | None = None, forces: str | None = None,
+                 quantity: str | None = None) -> TimeOptions | None:
+    """The command line's ``--sample-rate``, ``--forces`` and ``--quantity`` as
+    :class:`~automodal.io.channels.TimeOptions` (None when none is given).
+
+    ``forces`` is the text of ``--forces``: channel names or 0-based positions separated
+    by commas, or ``none``.
 
     Raises
     ------
     InputError
-        If ``path`` is a folder, or the file cannot be read.
+        For a sample rate that is not > 0, an empty channel name, an unknown quantity.
+    """
+    if sample_rate is None and forces is None and quantity is None:
+        return None
+    from automodal.io.channels import TimeOptions, parse_forces
+
+    return TimeOptions(sample_rate=sample_rate, forces=parse_forces(forces), quantity=quantity)
+
+
+def read_input(path: str | os.PathLike[str], options: TimeOptions | None = None) -> FRFData:
+    """Read any supported input file as FRFs (:func:`automodal.io.readers.read_any`; time
+    series go through the pipeline's input stage, :func:`automodal.core.from_time.as_frfdata`,
+    here, so that the report describes the FRFs that were analysed).
+
+    Parameters
+    ----------
+    path : str or path-like
+    options : TimeOptions, optional
+        What the user says about a file of samples (:func:`time_options`).
+
+    Raises
+    ------
+    InputError
+        If ``path`` is a folder, or the file cannot be read (or the options do not fit it).
+    """
+    return as_frf_input(read_time_or_frf(path, options))
+
+
+def read_time_or_frf(path: str | os.PathLike[str],
+                     options: TimeOptions | None = None) -> FRFData | TimeSeries:
+    """Read any supported input file, completed with ``options`` when it holds samples.
+
+    Raises
+    ------
+    InputError
+        If ``path`` is a folder, or the file cannot be read (or the options do not fit it).
     """
     if Path(path).is_dir():
         raise InputError("is a folder, not an input file", os.fspath(path))
-    from automodal.core.from_time import as_frfdata
     from automodal.io.readers import read_any
 
-    return as_frfdata(read_any(path))
+    return read_any(path, options)
+
+
+def as_frf_input(data: FRFData | TimeSeries) -> FRFData:
+    """What a reader gave, as the FRFs the pipeline identifies
+    (:func:`automodal.core.from_time.as_frfdata`)."""
+    from automodal.core.from_time import as_frfdata
+
+    return as_frfdata(data)
 
 
 def save(out: str | os.PathLike[str], report: Report, result: Result) -> Path:
@@ -127,6 +175,7 @@ def run_file(
     progress: Callable[[int], None] | None = None,
     sha256: str | None = None,
     geometry: Geometry | None = None,
+    options: TimeOptions | None = None,
 ) -> RunOutcome:
     """Identify one input file and write its reports.
 
@@ -152,6 +201,8 @@ def run_file(
     geometry : Geometry, optional
         Where the shape channels are (``--geometry``): sets the report's
         ``input.mode_shape_nodes``, ``mode_shape_directions`` and ``mode_shape_xyz``.
+    options : TimeOptions, optional
+        What the user says about a file of samples (:func:`time_options`).
 
     Returns
     -------
@@ -166,7 +217,7 @@ def run_file(
     from automodal.io.report import build_report
     from automodal.pipeline import identify
 
-    data = read_input(path)
+    data = read_input(path, options)
     result = identify(data, settings, progress=progress)
     report = build_report(result, data, input_path=path, sha256=sha256)
     if geometry is not None:

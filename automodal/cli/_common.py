@@ -130,6 +130,26 @@ def threshold_options(func: Callable) -> Callable:
     return func
 
 
+def time_input_options(func: Callable) -> Callable:
+    """``--sample-rate``, ``--forces`` and ``--quantity``: what a file of samples does not say
+    (``docs/time-input.md``)."""
+    from automodal.frfdata import QUANTITIES
+
+    options = [
+        click.option("--sample-rate", type=float, default=None, metavar="HZ",
+                     help="Time input: samples per second, when the file does not carry it "
+                     "(refused if it contradicts the file)."),
+        click.option("--forces", default=None, metavar="CH,...",
+                     help="Time input: the force channels, by name or 0-based position in "
+                     "the file ('none': output-only), when the file does not say."),
+        click.option("--quantity", type=click.Choice(QUANTITIES), default=None,
+                     help="Time input: the response quantity, when the file does not say."),
+    ]
+    for option in reversed(options):
+        func = option(func)
+    return func
+
+
 def thresholds_from(shift_sigmas: float | None, min_shift_percent: float | None,
                     min_mac: float | None) -> Thresholds | None:
     """The :class:`~automodal.tracking.Thresholds` of the options given (the defaults for

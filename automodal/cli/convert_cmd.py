@@ -13,6 +13,7 @@ from automodal.cli._common import (
     debug_option,
     exit_on_error,
     test_date_option,
+    time_input_options,
 )
 from automodal.errors import InputError
 
@@ -55,7 +56,8 @@ def summary(output: Path, data: FRFData) -> str:
 Examples:
   automodal convert measurement.uff measurement.h5
   automodal convert frfs.csv test.h5 --quiet
-  automodal convert beam.uff beam.h5 --geometry nodes.csv --test-date 2024-05-01""",
+  automodal convert beam.uff beam.h5 --geometry nodes.csv --test-date 2024-05-01
+  automodal convert hits.npy test.h5 --sample-rate 25600 --forces 1""",
 )
 @click.argument("input_path", metavar="INPUT", type=click.Path())
 @click.argument("output", metavar="OUTPUT.h5", type=click.Path(dir_okay=False, path_type=Path))
@@ -64,15 +66,21 @@ Examples:
                    " written as the outputs' nodes, directions and xyz.")
 @test_date_option
 @click.option("-q", "--quiet", is_flag=True, help="Print nothing on success.")
+@time_input_options
 @debug_option
 def convert(input_path: str, output: Path, geometry: str | None, test_date: str | None,
-            quiet: bool, debug: bool) -> None:
+            quiet: bool, sample_rate: float | None, forces: str | None, quantity: str | None,
+            debug: bool) -> None:
     """Convert INPUT to an automodal FRF file OUTPUT.h5 (docs/frf-file.md).
 
     INPUT is a UFF/UNV file with dataset 58 FRFs (.uff, .unv), a CSV or text table
     (.csv, .txt: frequency, then real/imaginary column pairs, one input), a NumPy archive
-    (.npz: keys frequency and frf) or an FRF file (.h5). OUTPUT is written atomically: it
-    is replaced only once complete. Prints one summary line unless --quiet.
+    (.npz: keys frequency and frf) or an FRF file (.h5); or time records (docs/time-input.md:
+    .npy, .npz, .csv/.tsv/.txt, .mat, .tdms, .uff, .h5), whose FRFs are written with the
+    records themselves in the /time group (sample rate and forces as --sample-rate and
+    --forces said), so that OUTPUT can be identified again without the options. OUTPUT is
+    written atomically: it is replaced only once complete. Prints one summary line unless
+    --quiet.
     """
     with exit_on_error(debug):
         when = None if test_date is None else checked_test_date(test_date)
@@ -81,11 +89,12 @@ def convert(input_path: str, output: Path, geometry: str | None, test_date: str 
         check_output_folder(output, "FRF file")
         if Path(input_path).is_dir():
             raise InputError("is a folder, not an input file", input_path)
-        from automodal.core.from_time import as_frfdata
+        from automodal.app.run import as_frf_input, read_time_or_frf, time_options
         from automodal.io.frf_file import write_frf
-        from automodal.io.readers import read_any
+        from automodal.timedata import TimeSeries
 
-        data = as_frfdata(read_any(input_path))
+        read = read_time_or_frf(input_path, time_options(sample_rate, forces, quantity))
+        data = as_frf_input(read)
         if geometry:
             from automodal.io.geometry import apply_to_data, read_geometry
 
@@ -96,6 +105,6 @@ def convert(input_path: str, output: Path, geometry: str | None, test_date: str 
             import json
 
             data.attributes["time_analysis"] = json.dumps(data.attributes["time_analysis"])
-        write_frf(output, data)
+        write_frf(output, data, time=read if isinstance(read, TimeSeries) else None)
         if not quiet:
             click.echo(summary(output, data))

@@ -22,6 +22,7 @@ from automodal.cli._common import (
     exit_on_error,
     threshold_options,
     thresholds_from,
+    time_input_options,
 )
 from automodal.errors import InputError
 
@@ -168,6 +169,7 @@ def _run_batch(input_path: str, outputs: tuple[str, ...], settings: Settings,
               default="json", show_default=True, help="Batch: report files per input.")
 @click.option("--dask-scheduler", default=None, metavar="ADDRESS",
               help="Batch: run the files on an existing Dask cluster (tcp://host:8786).")
+@time_input_options
 @debug_option
 def identify(
     input_path: str,
@@ -189,6 +191,9 @@ def identify(
     force: bool,
     report_format: str,
     dask_scheduler: str | None,
+    sample_rate: float | None,
+    forces: str | None,
+    quantity: str | None,
     debug: bool,
 ) -> None:
     """Identify the modes in INPUT (an automodal FRF file) with no human choice.
@@ -197,6 +202,8 @@ def identify(
     with --all; the JSON report with --json), and writes each -o report. The report's
     warnings (a band edge on a resonance, reciprocity assumed, lines left out, ...) follow
     the table on stderr, one line each; --quiet and --json leave them in the report only.
+    INPUT may hold FRFs or time records (docs/time-input.md: --sample-rate, --forces and
+    --quantity say what a file of samples does not).
 
     INPUT may also be a folder or a quoted glob: a batch run, one report per file in the
     folder -o OUTDIR with summary.json and summary.csv; files whose report is up to date
@@ -213,6 +220,7 @@ def identify(
       automodal identify test.h5 -o report.h5 --plot figures/
       automodal identify today.h5 -o today.json --baseline baseline.json
       automodal identify 'incoming/*.h5' -o reports/ --baseline baseline.json --quiet
+      automodal identify hits.npy --sample-rate 25600 --forces 1
     """
     with exit_on_error(debug), _quiet_warnings(debug):
         from automodal.app.run import is_batch_input
@@ -225,7 +233,13 @@ def identify(
             max_order=max_order,
             jobs=jobs,
         )
+        from automodal.app.run import time_options
+
+        options = time_options(sample_rate, forces, quantity)
         batch = is_batch_input(input_path)
+        if batch and options is not None:
+            raise InputError(f"{', '.join(options.given)} are for one file: convert each file "
+                             "with them to an FRF file first (automodal convert)")
         if batch and plot_dir:
             raise InputError("--plot is for one file: draw a batch's reports with automodal plot")
         if not batch and dask_scheduler:
@@ -251,7 +265,8 @@ def identify(
 
         def run(progress: Callable[[int], None] | None = None) -> RunOutcome:
             return run_file(input_path, settings, outputs, baseline, baseline_path,
-                            thresholds, progress=progress, geometry=geometry)
+                            thresholds, progress=progress, geometry=geometry,
+                            options=options)
 
         if not quiet and sys.stderr.isatty():
             with click.progressbar(length=n_bootstrap, label="bootstrap", file=sys.stderr) as bar:

@@ -29,6 +29,7 @@ from automodal.io.hdf5 import (
     open_hdf5,
     real_array,
     string_list,
+    write_time_group,
 )
 from automodal.io.header import (
     FORMAT_NAME,
@@ -38,6 +39,7 @@ from automodal.io.header import (
     write_header,
 )
 from automodal.io.refusal import Refused, read_refusing
+from automodal.timedata import TimeSeries
 
 __all__ = ["FORMAT_NAME", "FORMAT_VERSION", "read_frf", "write_frf"]
 
@@ -202,7 +204,8 @@ def _checked_attributes(attributes: dict[str, Any]) -> dict[str, Any]:
 # --------------------------------------------------------------------------------- writing
 
 
-def write_frf(path: str | os.PathLike[str], data: FRFData) -> None:
+def write_frf(path: str | os.PathLike[str], data: FRFData,
+              time: TimeSeries | None = None) -> None:
     """Write ``data`` as an automodal FRF file (version 1), atomically.
 
     Every optional field of ``data`` that is set is written; ``data.attributes`` become root
@@ -216,17 +219,26 @@ def write_frf(path: str | os.PathLike[str], data: FRFData) -> None:
         Where to write (conventionally ``*.h5``).
     data : FRFData
         The test to write.
+    time : TimeSeries, optional
+        The time records ``data`` was made from, written as the ``/time`` group
+        (:func:`automodal.io.hdf5.write_time_group`); their channels must be those of
+        ``data`` (its outputs, and its inputs when they were measured), whose names the
+        file holds.
 
     Raises
     ------
     ValueError
-        If ``data.quantity`` is not one of :data:`automodal.frfdata.QUANTITIES`.
+        If ``data.quantity`` is not one of :data:`automodal.frfdata.QUANTITIES`, or
+        ``time`` has other channels.
     TypeError
         If an attribute value cannot be stored in HDF5.
     """
     problem = quantity_problem(data.quantity)
     if problem:
         raise ValueError(problem)
+    if time is not None and (list(time.output_names) != list(data.output_names) or (
+            time.inputs is not None and list(time.input_names) != list(data.input_names))):
+        raise ValueError("the time records' channels are not the FRFs' channels")
     with atomic_path(path) as tmp, h5py.File(tmp, "w") as f:
         write_header(f, data.attributes, data.quantity)
         f.create_dataset("frequency", data=np.asarray(data.frequency, dtype=np.float64))
@@ -239,6 +251,8 @@ def write_frf(path: str | os.PathLike[str], data: FRFData) -> None:
         _write_channels(f, "inputs", data.input_names, data.input_nodes, data.input_directions)
         if data.output_xyz is not None:
             f.create_dataset("outputs/xyz", data=np.asarray(data.output_xyz, dtype=np.float64))
+        if time is not None:
+            write_time_group(f, time)
 
 
 def _write_channels(

@@ -1,7 +1,8 @@
 """HDF5 helpers shared by the readers and writers of automodal's HDF5 files.
 
 Opening a file read-only with a refusal that says what is wrong (empty, not HDF5, damaged),
-getting a group or a dataset that must be one, typed dataset readers that refuse the wrong
+getting a group or a dataset that must be one, writing the ``/time`` group (both writers of
+automodal's files do), typed dataset readers that refuse the wrong
 dtype, an empty dataset or one too large to read safely (:data:`~automodal.io.limits.
 MAX_VALUES`, checked before reading), string lists, and the conversion of attribute values
 to plain Python and back. Every problem is raised as :class:`~automodal.io.refusal.Refused`
@@ -11,13 +12,16 @@ to plain Python and back. Every problem is raised as :class:`~automodal.io.refus
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import h5py
 import numpy as np
 
 from automodal.io.limits import size_problem
 from automodal.io.refusal import READ_ERRORS, Refused, describe
+
+if TYPE_CHECKING:
+    from automodal.timedata import TimeSeries
 
 __all__ = [
     "attribute_value",
@@ -32,6 +36,7 @@ __all__ = [
     "plain",
     "real_array",
     "string_list",
+    "write_time_group",
 ]
 
 
@@ -218,3 +223,21 @@ def attribute_value(value: Any) -> Any:
     if isinstance(value, (list, tuple)) and value and all(isinstance(v, str) for v in value):
         return np.array(value, dtype=h5py.string_dtype())
     return value
+
+
+def write_time_group(f: h5py.File, ts: TimeSeries) -> None:
+    """Write the ``/time`` group of ``ts`` (samples and ``sample_rate``) into an open file;
+    the channel names (``/outputs/name``, ``/inputs/name``) are the caller's.
+
+    Parameters
+    ----------
+    f : h5py.File
+        Open for writing, without a ``/time`` group.
+    ts : TimeSeries
+        The records (:class:`~automodal.timedata.TimeSeries`).
+    """
+    time = f.create_group("time")
+    time.attrs["sample_rate"] = float(ts.sample_rate)
+    time.create_dataset("outputs", data=np.asarray(ts.outputs, dtype=np.float64))
+    if ts.inputs is not None:
+        time.create_dataset("inputs", data=np.asarray(ts.inputs, dtype=np.float64))

@@ -8,16 +8,29 @@ suffix                    reader
 ``.h5``, ``.hdf5``        :func:`read_hdf5`: :func:`automodal.io.frf_file.read_frf`
                           (FRFs) or :func:`automodal.io.time_file.read_time`
                           (a file with time series only)
-``.uff``, ``.unv``        :func:`automodal.io.uff.read_uff` (dataset 58)
-``.csv``, ``.txt``        :func:`automodal.io.tabular.read_csv`
-``.npz``                  :func:`automodal.io.tabular.read_npz`
+``.uff``, ``.unv``        :func:`automodal.io.uff.read_uff` (dataset 58: FRFs, or
+                          time responses)
+``.csv``, ``.tsv``,       :func:`automodal.io.tabular.read_table` (FRFs or samples,
+``.txt``                  as the header says)
+``.npz``                  :func:`automodal.io.numpy_files.read_npz_any` (FRFs or
+                          samples, as the keys say)
+``.npy``                  :func:`automodal.io.numpy_files.read_npy` (samples)
+``.mat``                  :func:`automodal.io.matlab.read_mat` (samples; MATLAB v5
+                          to v7.3)
+``.tdms``                 :func:`automodal.io.tdms.read_tdms` (samples; needs the
+                          extra ``automodal[tdms]``)
 ========================  =====================================================
 
 A file with another suffix is read as an HDF5 file when it carries the HDF5 signature and is
 refused otherwise. The readers are imported only when used, so that pyuff is loaded only for
 UFF files and h5py only for HDF5 files. The readers only read: a time-series file gives a
 :class:`~automodal.timedata.TimeSeries`, which the pipeline's input stage
-(:func:`automodal.core.from_time.as_frfdata`) turns into FRFs.
+(:func:`automodal.core.from_time.as_frfdata`) turns into FRFs. A file of samples that does
+not say everything (its sample rate, which channels are forces, the response quantity) is
+completed by :class:`~automodal.io.channels.TimeOptions`, the command line's
+``--sample-rate``, ``--forces`` and ``--quantity``
+(:func:`automodal.io.channels.to_time_series`); options given for a file of FRFs are
+refused.
 
 On Linux the reading runs in a forked child process with a time limit
 (:data:`READ_TIMEOUT_S`): a damaged HDF5 file can make the HDF5 library loop for ever (found
@@ -43,6 +56,7 @@ from automodal.io.limits import check_is_file
 
 if TYPE_CHECKING:  # annotations only: the readers import what they return
     from automodal.frfdata import FRFData
+    from automodal.io.channels import Channels, TimeOptions
     from automodal.timedata import TimeSeries
 
 __all__ = ["READERS", "READ_TIMEOUT_S", "read_any", "read_hdf5"]
@@ -57,16 +71,25 @@ READERS: dict[str, tuple[str, str]] = {
     ".hdf5": ("automodal.io.readers", "read_hdf5"),
     ".uff": ("automodal.io.uff", "read_uff"),
     ".unv": ("automodal.io.uff", "read_uff"),
-    ".csv": ("automodal.io.tabular", "read_csv"),
-    ".txt": ("automodal.io.tabular", "read_csv"),
-    ".npz": ("automodal.io.tabular", "read_npz"),
+    ".csv": ("automodal.io.tabular", "read_table"),
+    ".tsv": ("automodal.io.tabular", "read_table"),
+    ".txt": ("automodal.io.tabular", "read_table"),
+    ".npz": ("automodal.io.numpy_files", "read_npz_any"),
+    ".npy": ("automodal.io.numpy_files", "read_npy"),
+    ".mat": ("automodal.io.matlab", "read_mat"),
+    ".tdms": ("automodal.io.tdms", "read_tdms"),
 }
 """Suffix (lower case) -> (module, function) of the reader used for it."""
 
+_TAKE_OPTIONS = frozenset({("automodal.io.tabular", "read_table")})
+"""Readers that need the options to tell what the file holds (a table's header of channel
+names is one of samples only when the sample rate is given)."""
 
-def read_any(path: str | os.PathLike[str]) -> FRFData | TimeSeries:
-    """Read an FRF file (or its time series), a UFF/UNV file, a CSV/text table or an NPZ
-    archive.
+
+def read_any(path: str | os.PathLike[str],
+             options: TimeOptions | None = None) -> FRFData | TimeSeries:
+    """Read an FRF file (or its time series), a UFF/UNV file, a CSV/text table, a NumPy,
+    MATLAB or TDMS file.
 
     Parameters
     ----------
@@ -74,6 +97,9 @@ def read_any(path: str | os.PathLike[str]) -> FRFData | TimeSeries:
         The input file. The suffix (case-insensitive) chooses the reader, see
         :data:`READERS`; with any other suffix the file is read as an automodal FRF file if
         it starts with the HDF5 signature.
+    options : TimeOptions, optional
+        What the user says about a file of samples: its sample rate, which channels are
+        forces, the response quantity (checked against what the file says).
 
     Returns
     -------
@@ -85,20 +111,23 @@ def read_any(path: str | os.PathLike[str]) -> FRFData | TimeSeries:
     ------
     InputError
         If the file is missing or a folder, if its type cannot be told from its suffix or
-        content, or if the chosen reader refuses it. The message is one line and names the
-        file.
+        content, if the chosen reader refuses it, if ``options`` contradict the file or
+        do not complete a file of samples (no sample rate), or are given for a file of
+        FRFs. The message is one line and names the file.
     """
     source = str(path)
     check_is_file(Path(path), source)
     timeout = _read_timeout()
     if (timeout <= 0 or not sys.platform.startswith("linux")
             or multiprocessing.current_process().daemon):  # a daemon may not have children
-        return _read_by_suffix(path)
-    return _read_in_child(path, timeout)
+        return _read_by_suffix(path, options)
+    return _read_in_child(path, options, timeout)
 
 
-def _read_by_suffix(path: str | os.PathLike[str]) -> FRFData | TimeSeries:
-    """Pick the reader by the suffix (or the HDF5 signature) and read."""
+def _read_by_suffix(path: str | os.PathLike[str],
+                    options: TimeOptions | None = None) -> FRFData | TimeSeries:
+    """Pick the reader by the suffix (or the HDF5 signature), read, and complete a file of
+    samples with the options."""
     source = str(path)
     p = Path(path)
     target = READERS.get(p.suffix.lower())
@@ -112,7 +141,28 @@ def _read_by_suffix(path: str | os.PathLike[str]) -> FRFData | TimeSeries:
         target = READERS[".h5"]
     module, name = target
     reader = getattr(importlib.import_module(module), name)
-    return reader(path)
+    read = reader(path, options) if target in _TAKE_OPTIONS else reader(path)
+    return _completed(read, options, source)
+
+
+def _completed(read: FRFData | TimeSeries | Channels, options: TimeOptions | None,
+               source: str) -> FRFData | TimeSeries:
+    """What a reader gave, as FRFs or a time series completed with the options."""
+    from automodal.io.channels import Channels, channels_of, to_time_series
+    from automodal.timedata import TimeSeries
+
+    given = options.given if options is not None else []
+    if isinstance(read, Channels):
+        return to_time_series(read, options, source)
+    if isinstance(read, TimeSeries):
+        return to_time_series(channels_of(read), options, source) if given else read
+    if given:
+        hint = (" (a table is read as samples when its header names a time column 't' or "
+                "'time', or names channels and --sample-rate is given)"
+                if Path(source).suffix.lower() in (".csv", ".tsv", ".txt") else "")
+        raise InputError(f"{', '.join(given)} describe time series, but the file holds FRFs"
+                         f"{hint}", source)
+    return read
 
 
 def _read_timeout() -> float:
@@ -124,7 +174,8 @@ def _read_timeout() -> float:
         return READ_TIMEOUT_S
 
 
-def _read_in_child(path: str | os.PathLike[str], timeout: float) -> FRFData | TimeSeries:
+def _read_in_child(path: str | os.PathLike[str], options: TimeOptions | None,
+                   timeout: float) -> FRFData | TimeSeries:
     """:func:`_read_by_suffix` in a forked child that must answer within ``timeout``.
 
     The child sends back the data, or the refusal, or the unexpected exception, which are
@@ -135,7 +186,7 @@ def _read_in_child(path: str | os.PathLike[str], timeout: float) -> FRFData | Ti
     source = str(path)
     context = multiprocessing.get_context("fork")
     receive, send = context.Pipe(duplex=False)
-    child = context.Process(target=_child_reads, args=(path, send), daemon=True)
+    child = context.Process(target=_child_reads, args=(path, options, send), daemon=True)
     child.start()
     send.close()
     try:
@@ -161,12 +212,12 @@ def _read_in_child(path: str | os.PathLike[str], timeout: float) -> FRFData | Ti
     raise answer[1]
 
 
-def _child_reads(path: str | os.PathLike[str], send: Any) -> None:
+def _child_reads(path: str | os.PathLike[str], options: TimeOptions | None, send: Any) -> None:
     """In the child: read, and send ``("data", FRFData or TimeSeries)``,
     ``("refused", problem, path)`` or ``("error", exception)`` back."""
     answer: tuple[Any, ...]
     try:
-        answer = ("data", _read_by_suffix(path))
+        answer = ("data", _read_by_suffix(path, options))
     except InputError as exc:
         answer = ("refused", exc.problem, exc.path)
     except Exception as exc:  # noqa: BLE001 - raised again in the parent

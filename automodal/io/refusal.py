@@ -60,7 +60,8 @@ def read_refusing(read: Callable[[Path, str], _T], path: str | os.PathLike[str])
     InputError
         For a missing path or a folder (:func:`~automodal.io.limits.check_is_file`), a
         :class:`Refused` problem, an :class:`InputError` raised by ``read`` (as it
-        is), or one of :data:`READ_ERRORS` (``"cannot read the file: ..."``).
+        is, with the file's name added when it names no file), or one of
+        :data:`READ_ERRORS` (``"cannot read the file: ..."``).
     """
     source = str(path)
     p = Path(path)
@@ -69,6 +70,10 @@ def read_refusing(read: Callable[[Path, str], _T], path: str | os.PathLike[str])
         return read(p, source)
     except Refused as exc:
         raise InputError(exc.problem, source) from None
+    except InputError as exc:
+        if exc.path is None:  # a shared helper's refusal, which does not know the file
+            raise InputError(exc.problem, source) from None
+        raise
     except READ_ERRORS as exc:
         raise InputError(f"cannot read the file: {describe(exc)}", source) from exc
 

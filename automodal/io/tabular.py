@@ -1,4 +1,8 @@
-"""Reading FRFs from plain tables: CSV/text files and NumPy ``.npz`` archives.
+"""Reading plain tables: CSV/text files (FRFs or samples) and NumPy ``.npz`` archives of FRFs.
+
+:func:`read_table` reads a table of FRFs or of samples, as its header says (a first column
+named like a frequency, or FRF parts: FRFs; a column named like a time, or channel names
+with a given sample rate: samples, ``docs/time-input.md``); :func:`read_csv` reads FRFs.
 
 CSV layout (:func:`read_csv`)::
 
@@ -25,6 +29,7 @@ from __future__ import annotations
 import math
 import os
 import re
+from collections.abc import Sequence
 from pathlib import Path
 from typing import IO, Any
 
@@ -32,10 +37,11 @@ import numpy as np
 
 from automodal.errors import InputError
 from automodal.frfdata import QUANTITIES, FRFData, quantity_problem
+from automodal.io.channels import Channels, TimeOptions, rate_from_time, time_axis, time_unit
 from automodal.io.limits import check_not_real_valued, check_size, check_text_size
 from automodal.io.refusal import describe, read_refusing
 
-__all__ = ["read_csv", "read_npz"]
+__all__ = ["npy_shape", "npz_members", "read_csv", "read_npz", "read_table"]
 
 _QUANTITY_LINE = re.compile(r"^#\s*quantity\s*[:=]\s*(\S+)\s*$", re.IGNORECASE)
 _REAL_WRAPPED = re.compile(r"^re(al)?\s*[(\[](.*)[)\]]$", re.IGNORECASE)
@@ -88,19 +94,59 @@ def read_csv(path: str | os.PathLike[str]) -> FRFData:
         values; not all imaginary parts zero); or when it is larger than
         :data:`automodal.io.limits.MAX_TEXT_BYTES` (not read).
     """
-    return read_refusing(_read_csv, path)
+    data = read_table(path)
+    if not isinstance(data, FRFData):
+        raise InputError("the header names a time column: a table of samples, not of FRFs "
+                         "(read it with read_table)", str(path))
+    return data
 
 
-def _read_csv(path: Path, source: str) -> FRFData:
-    """:func:`read_csv` (raises :class:`InputError` naming ``source`` on a bad file)."""
+def read_table(path: str | os.PathLike[str],
+               options: TimeOptions | None = None) -> FRFData | Channels:
+    """Read a CSV or text table of FRFs or of samples, as its header says.
+
+    The header decides: a first column named like a frequency (``f``, ``freq``,
+    ``frequency``, ``Hz``, with or without a unit) or columns named as FRF parts (``_re``,
+    ``_im``, ``mag``, ``phase_deg``, ...) make a table of FRFs (:func:`read_csv`); a column
+    named like a time (``t``, ``time``, ``time [s]``, ``t_ms``) makes a table of samples, the
+    other columns being channels named by the header, the rate derived from the time column
+    (checked to be uniform). A header of channel names only is a table of samples when the
+    sample rate is given (``options.sample_rate``) and is refused otherwise, since it could be
+    either; a table without a header is a table of FRFs.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The ``.csv``, ``.tsv`` or ``.txt`` file (UTF-8).
+    options : TimeOptions, optional
+        What the user says about samples (only whether a sample rate is given matters here).
+
+    Returns
+    -------
+    FRFData or Channels
+        The FRFs, or the channels of samples (with ``quantity`` when a ``# quantity:``
+        comment states it) for :func:`automodal.io.channels.to_time_series`.
+
+    Raises
+    ------
+    InputError
+        What :func:`read_csv` refuses, and for a table of samples: an ambiguous header, two
+        time columns, a time column that does not increase uniformly, no channel.
+    """
+    return read_refusing(lambda p, s: _read_table(p, s, options), path)
+
+
+def _read_table(path: Path, source: str, options: TimeOptions | None) -> FRFData | Channels:
+    """:func:`read_table` (raises :class:`InputError` naming ``source`` on a bad file)."""
     text = _read_text(path, source)
     quantity, quantity_source = "displacement", _assumed("CSV")
+    stated = None
     rows: list[tuple[int, str]] = []
     for number, raw in enumerate(text.splitlines(), start=1):
         line = raw.strip()
         directive = _QUANTITY_LINE.match(line)
         if directive:
-            quantity = _known_quantity(directive.group(1), f"line {number}", source)
+            quantity = stated = _known_quantity(directive.group(1), f"line {number}", source)
             quantity_source = f"'# quantity:' comment (line {number}) of the CSV file"
         elif line and not line.startswith("#"):
             rows.append((number, line))
@@ -110,12 +156,15 @@ def _read_csv(path: Path, source: str) -> FRFData:
     cells = [(n, _split(line, comma)) for n, line in rows]
     header = None
     if not _numeric(cells[0][1]):
-        (_, header), cells = cells[0], cells[1:]
+        header = _split_header(rows[0][1], comma)
+        cells = cells[1:]
     table = _number_table(cells, source)
     n_cols = table.shape[1]
     if header is not None and len(header) != n_cols:
         raise InputError(f"the header has {len(header)} columns but the rows have {n_cols}",
                          source)
+    if header is not None and _holds_samples(header, options, source):
+        return _samples_table(table, header, stated)
     if n_cols < 3 or n_cols % 2 == 0:
         raise InputError(f"{n_cols} columns; {_CSV_LAYOUT} (an odd number of columns, at "
                          "least 3)", source)
@@ -133,6 +182,43 @@ def _read_csv(path: Path, source: str) -> FRFData:
     return data
 
 
+_FREQUENCY_NAME = re.compile(r"^(f|freq|frequency|hz)\s*(?:[\[(]?\s*hz\s*[\])]?)?$",
+                             re.IGNORECASE)
+
+
+def _holds_samples(header: list[str], options: TimeOptions | None, source: str) -> bool:
+    """Whether a table's header makes it one of samples (else FRFs); refuse an ambiguous
+    one."""
+    if any(time_unit(name) is not None for name in header):
+        return True
+    if _FREQUENCY_NAME.match(header[0].strip().replace("_", " ")):
+        return False
+    if any(_column_kind(name) != "other" for name in header[1:]):
+        return False
+    if options is not None and options.sample_rate is not None:
+        return True
+    raise InputError("the header names neither a frequency column (FRFs: name the first "
+                     "column 'frequency') nor a time column (samples: name it 't' or 'time'); "
+                     "for channels of samples without a time column give --sample-rate HZ",
+                     source)
+
+
+def _samples_table(table: np.ndarray, header: list[str], quantity: str | None) -> Channels:
+    """The channels of a table of samples (a time column, if any, gives the rate)."""
+    position, keep = time_axis([time_unit(name) is not None for name in header], header,
+                               "the table")
+    rate, rate_source = None, ""
+    if position is not None:
+        where = f"the time column {header[position]!r}"
+        unit = time_unit(header[position]) or 1.0
+        rate, rate_source = rate_from_time(table[:, position] * unit, where), where
+    names = [header[i].strip() or f"ch{i}" for i in keep]
+    return Channels(samples=table[:, keep], names=names, positions=keep, sample_rate=rate,
+                    rate_source=rate_source, quantity=quantity,
+                    attributes={"source_format": "CSV table of samples"},
+                    time_position=position)
+
+
 def _read_text(path: Path, source: str) -> str:
     """The file as UTF-8 text (a leading byte-order mark removed)."""
     check_text_size(path, source)
@@ -142,6 +228,14 @@ def _read_text(path: Path, source: str) -> str:
         raise InputError(f"not a UTF-8 text file; {_CSV_LAYOUT}", source) from None
     except OSError as exc:
         raise InputError(f"cannot read the file: {exc.strerror or exc}", source) from exc
+
+
+def _split_header(line: str, comma: bool) -> list[str]:
+    """The cells of the header row: split at commas, or at tabs when it has tabs (names may
+    hold spaces, ``Time (s)``), or at whitespace."""
+    if not comma and "\t" in line:
+        return [cell.strip() for cell in line.split("\t") if cell.strip()]
+    return _split(line, comma)
 
 
 def _split(line: str, comma: bool) -> list[str]:
@@ -308,7 +402,7 @@ def _read_npz(p: Path, source: str) -> FRFData:
                              source)
         with loaded as archive:
             keys = list(archive.files)
-            arrays = _npz_arrays(archive, source)
+            arrays = npz_members(archive, _NPZ_KEYS, _NPZ_LAYOUT, source)
     except InputError:
         raise
     except Exception as exc:  # noqa: BLE001 - zipfile, zlib and numpy raise many kinds
@@ -341,30 +435,33 @@ _NPZ_KEYS = ("frequency", "frf", "quantity")
 """The members of an NPZ archive that are read (others are only named)."""
 
 
-def _npz_arrays(archive: np.lib.npyio.NpzFile, source: str) -> dict[str, np.ndarray]:
-    """The members :data:`_NPZ_KEYS` of an open archive, as arrays.
+def npz_members(archive: np.lib.npyio.NpzFile, keys: Sequence[str], layout: str,
+                source: str) -> dict[str, np.ndarray]:
+    """The members ``keys`` of an open archive (those it has), as arrays.
 
     Their ``.npy`` headers are checked first: a member that is not an ``.npy`` array is
     refused, and so are members that declare more than
     :data:`~automodal.io.limits.MAX_VALUES` numbers in all, before anything is loaded (a
     small compressed archive may declare or hold a huge array). Other members are not read.
+    ``layout`` (what the archive should hold) ends the refusal of a member that is not an
+    array.
     """
     names = set(archive.zip.namelist())
     total = 0
-    for key in _NPZ_KEYS:
+    for key in keys:
         member = key if key in names else f"{key}.npy" if f"{key}.npy" in names else None
         if member is None:
             continue
         with archive.zip.open(member) as fp:
-            shape = _npy_shape(fp)
+            shape = npy_shape(fp)
         if shape is None:
-            raise InputError(f"the member {key!r} is not a .npy array; {_NPZ_LAYOUT}", source)
+            raise InputError(f"the member {key!r} is not a .npy array; {layout}", source)
         total += math.prod(shape)
-    check_size(total, "the archive ('frequency', 'frf', 'quantity')", source)
-    return {key: archive[key] for key in _NPZ_KEYS if key in archive}
+    check_size(total, f"the archive ({', '.join(map(repr, keys))})", source)
+    return {key: archive[key] for key in keys if key in archive}
 
 
-def _npy_shape(fp: IO[bytes]) -> tuple[int, ...] | None:
+def npy_shape(fp: IO[bytes]) -> tuple[int, ...] | None:
     """The shape an ``.npy`` stream declares in its header, None when it is not one."""
     try:
         version = np.lib.format.read_magic(fp)

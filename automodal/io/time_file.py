@@ -18,7 +18,15 @@ import numpy as np
 
 from automodal.frfdata import quantity_problem
 from automodal.io.atomic import atomic_path
-from automodal.io.hdf5 import check_dataset_size, dataset, group, open_hdf5, plain, string_list
+from automodal.io.hdf5 import (
+    check_dataset_size,
+    dataset,
+    group,
+    open_hdf5,
+    plain,
+    string_list,
+    write_time_group,
+)
 from automodal.io.header import free_attributes, read_header, write_header
 from automodal.io.refusal import Refused, read_refusing
 from automodal.timedata import TimeSeries
@@ -174,10 +182,8 @@ def write_time(path: str | os.PathLike[str], ts: TimeSeries) -> None:
     strings = h5py.string_dtype()
     with atomic_path(path) as tmp, h5py.File(tmp, "w") as f:
         write_header(f, ts.attributes, quantity)
-        time = f.create_group("time")
-        time.attrs["sample_rate"] = float(ts.sample_rate)
-        time.create_dataset("outputs", data=np.asarray(ts.outputs, dtype=np.float64))
+        write_time_group(f, ts)
         f.create_dataset("outputs/name", data=np.array(list(ts.output_names), dtype=strings))
         if ts.inputs is not None:
-            time.create_dataset("inputs", data=np.asarray(ts.inputs, dtype=np.float64))
             f.create_dataset("inputs/name", data=np.array(list(ts.input_names), dtype=strings))
+

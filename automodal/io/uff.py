@@ -1,9 +1,12 @@
-"""Reading FRFs from universal files (UFF/UNV), dataset 58, ASCII or binary, with pyuff.
+"""Reading universal files (UFF/UNV), dataset 58, ASCII or binary, with pyuff: FRFs, or
+time records.
 
 Each dataset 58 holds one function between a response DOF (node and direction) and a
-reference DOF. :func:`read_uff` groups the sets by reference (input) and response (output)
+reference DOF. :func:`read_uff` groups FRF sets by reference (input) and response (output)
 into one ``(n_freq, n_outputs, n_inputs)`` array, in the order in which the channels first
-appear in the file. Data sets of other types (geometry, units, ...) are skipped.
+appear in the file. A file whose every set is a time response (function type 1) holds time
+records instead: one channel per set, forces being the sets whose ordinate is an excitation
+force (specific data type 13). Data sets of other types (geometry, units, ...) are skipped.
 """
 
 from __future__ import annotations
@@ -17,6 +20,7 @@ import numpy as np
 
 from automodal.errors import InputError
 from automodal.frfdata import FRFData
+from automodal.io.channels import Channels, rate_from_time
 from automodal.io.limits import check_not_real_valued, check_text_size
 from automodal.io.refusal import describe, read_refusing
 
@@ -24,6 +28,12 @@ __all__ = ["FUNCTION_TYPES", "direction_name", "read_uff"]
 
 FRF_FUNCTION_TYPE = 4
 """Function type (record 6, field 1) of a frequency response function."""
+
+TIME_FUNCTION_TYPE = 1
+"""Function type of a time response (a record of samples)."""
+
+_FORCE_TYPE = 13
+"""Specific data type (records 8 to 11, field 1) of an excitation force."""
 
 FUNCTION_TYPES = {
     0: "general or unknown", 1: "time response", 2: "auto spectrum", 3: "cross spectrum",
@@ -63,8 +73,11 @@ _ID_PATTERNS = (
 )
 
 
-def read_uff(path: str | os.PathLike[str]) -> FRFData:
-    """Read the FRFs of a universal file (dataset 58, ASCII or binary).
+def read_uff(path: str | os.PathLike[str]) -> FRFData | Channels:
+    """Read the FRFs, or the time records, of a universal file (dataset 58, ASCII or binary).
+
+    A file whose every dataset 58 is a time response (function type 1) gives
+    :class:`~automodal.io.channels.Channels`: see :func:`_time_channels`. Otherwise:
 
     Every dataset 58 must be an FRF (function type 4) with complex values over one common
     frequency axis (uneven spacing is fine when every set has the same lines). The sets are
@@ -111,10 +124,12 @@ def read_uff(path: str | os.PathLike[str]) -> FRFData:
     return read_refusing(_read_uff, path)
 
 
-def _read_uff(p: Path, source: str) -> FRFData:
+def _read_uff(p: Path, source: str) -> FRFData | Channels:
     """:func:`read_uff` (raises :class:`InputError` naming ``source`` on a bad file)."""
     check_text_size(p, source)
     sets = _read_sets(p, source)
+    if all(int(dset.get("func_type", -1)) == TIME_FUNCTION_TYPE for _, dset in sets):
+        return _time_channels(sets, source)
     for number, dset in sets:
         _check_set(number, dset, source)
     frequency = _common_frequency(sets, source)
@@ -397,3 +412,59 @@ def _format_name(sets: list[tuple[int, dict[str, Any]]]) -> str:
     """``"UFF dataset 58 (ASCII)"``, ``"... (binary)"`` or ``"... (ASCII and binary)"``."""
     kinds = {"binary" if dset.get("binary") else "ASCII" for _, dset in sets}
     return f"UFF dataset 58 ({' and '.join(sorted(kinds))})"
+
+
+# -------------------------------------------------------------------------- time records
+
+
+def _time_channels(sets: list[tuple[int, dict[str, Any]]], source: str) -> Channels:
+    """The channels of a file of time responses (function type 1), one per set.
+
+    Every set must hold real values over one common time axis (uniform: it gives the sample
+    rate) and be the only one of its response DOF. A set whose ordinate is an excitation
+    force (specific data type 13) is a force; when some set states its ordinate type, the
+    file says which channels are forces, else ``--forces`` must. The response quantity is
+    the responses' ordinate type (or axis label), when they state one and agree.
+    """
+    first_number, first = sets[0]
+    x = np.asarray(first.get("x"), dtype=np.float64)
+    for number, dset in sets:
+        ord_type = int(dset.get("ord_data_type", -1))
+        if ord_type not in _REAL_ORDINATES:
+            name = _ORDINATE_TYPES.get(ord_type, "unknown")
+            raise InputError(f"data set {number} is a time response with ordinate data type "
+                             f"{ord_type} ({name}); samples must be real", source)
+        abscissa = int(dset.get("abscissa_spec_data_type", 0))
+        if abscissa not in (0, 17):
+            raise InputError(f"data set {number} is a time response over an abscissa of data "
+                             f"type {abscissa}, not time (17)", source)
+        xs, data = np.asarray(dset.get("x"), dtype=np.float64), np.asarray(dset.get("data"))
+        if data.shape != x.shape or xs.shape != x.shape or not np.allclose(xs, x, rtol=1e-9):
+            raise InputError(f"data set {number} has another time axis ({xs.size} samples) "
+                             f"than data set {first_number} ({x.size}): all records must "
+                             "be sampled together", source)
+    try:
+        rate = rate_from_time(x, f"the time axis of data set {first_number}")
+    except InputError as exc:
+        raise InputError(exc.problem, source) from None
+    channels: dict[tuple[int, int], int] = {}
+    info: list[dict[str, Any]] = []
+    for number, dset in sets:
+        key = (int(dset.get("rsp_node", 0)), int(dset.get("rsp_dir", 0)))
+        if key in channels:
+            raise InputError(f"data sets {channels[key]} and {number} are both records of "
+                             f"{_dof({'node': key[0], 'dir': key[1]})}", source)
+        channels[key] = number
+        _channel_index({}, info, dset, "rsp")
+    names, _ = _channel_names(info, [])
+    types = [int(dset.get("ordinate_spec_data_type", 0)) for _, dset in sets]
+    says = any(t == _FORCE_TYPE or t in _MOTION_TYPES for t in types)
+    forces = [i for i, t in enumerate(types) if t == _FORCE_TYPE] if says else None
+    responses = [s for s, t in zip(sets, types) if t != _FORCE_TYPE]
+    quantity, note = _quantity(responses, source) if responses else (None, "not stated")
+    samples = np.column_stack([np.asarray(dset["data"], dtype=np.float64) for _, dset in sets])
+    return Channels(samples=samples, names=names, sample_rate=rate,
+                    rate_source=f"the time axis of data set {first_number}", forces=forces,
+                    quantity=None if note.startswith("not stated") else quantity,
+                    attributes={"source_format": _format_name(sets).replace(
+                        "dataset 58", "dataset 58 time records")})
