@@ -279,6 +279,7 @@ class Score:
     found: int
     extra: int
     extra_hz: list[float]
+    uncounted_hz: list[float]  # unmatched at or above the dataset's extra_below_hz
     f: np.ndarray  # per true mode, nan when missed
     zeta: np.ndarray
     seconds: float
@@ -292,7 +293,8 @@ def score(ds: Dataset, run: Run) -> Score:
     zeta = np.where(hit, run.zeta[idx], np.nan) if run.f.size else np.full(idx.size, np.nan)
     unmatched = np.setdiff1d(np.arange(run.f.size), idx[hit])
     extra = [float(run.f[j]) for j in unmatched if run.f[j] < ds.extra_below_hz]
-    return Score(int(hit.sum()), len(extra), extra, f, zeta, run.seconds)
+    above = [float(run.f[j]) for j in unmatched if run.f[j] >= ds.extra_below_hz]
+    return Score(int(hit.sum()), len(extra), extra, above, f, zeta, run.seconds)
 
 
 # ---------------------------------------------------------------------------------------
@@ -355,13 +357,20 @@ def mode_rows(ds: Dataset, scores: dict[str, list[Score]]) -> list[str]:
     return rows
 
 
-def extra_rows(scores: dict[str, list[Score]]) -> list[str]:
-    """The extra modes of each tool's first repetition."""
+def listed(hz: list[float], at_most: int = 30) -> str:
+    """Frequencies as text, the first ``at_most``."""
+    text = ", ".join(f"{f:.2f}" for f in sorted(hz)[:at_most])
+    return (text + (" ..." if len(hz) > at_most else "")) or "none"
+
+
+def extra_rows(ds: Dataset, scores: dict[str, list[Score]]) -> list[str]:
+    """The extra modes of each tool's first repetition (and the uncounted ones)."""
     rows = []
     for tool, reps in scores.items():
-        hz = reps[0].extra_hz
-        listed = ", ".join(f"{f:.2f}" for f in sorted(hz)[:30]) + (" ..." if len(hz) > 30 else "")
-        rows.append(f"- {tool}: {listed or 'none'}")
+        row = f"- {tool}: {listed(reps[0].extra_hz)}"
+        if ds.extra_below_hz < math.inf:
+            row += f"; not counted (>= {ds.extra_below_hz:g} Hz): {listed(reps[0].uncounted_hz)}"
+        rows.append(row)
     return rows
 
 
@@ -396,7 +405,7 @@ def report(datasets: list[Dataset], all_scores: dict[str, dict[str, list[Score]]
             lines += [f"Extra modes counted below {ds.extra_below_hz:g} Hz only.", ""]
         lines += summary_rows(ds, all_scores[ds.name]) + [""]
         lines += mode_rows(ds, all_scores[ds.name]) + [""]
-        lines += ["Extra modes (first repetition, Hz):", ""] + extra_rows(all_scores[ds.name])
+        lines += ["Extra modes (first repetition, Hz):", ""] + extra_rows(ds, all_scores[ds.name])
         lines += [""]
     return "\n".join(lines) + "\n"
 
