@@ -411,3 +411,18 @@ def test_realdata_weimar_npy_reads_as_output_only_samples():
     ts = read_any(path, TimeOptions(sample_rate=256.0))
     assert (ts.n_samples, ts.n_outputs, ts.inputs) == (61440, 6, None)
     assert "orientation" not in ts.attributes
+
+
+def test_a_npy_whose_header_is_damaged_is_refused(tmp_path):
+    """numpy parses the header as a Python literal: a header cut by zeros raised the
+    tokenizer's TokenError through the reader (found by the property-based tests)."""
+    from automodal.errors import InputError
+    from automodal.io.readers import read_any
+
+    path = tmp_path / "damaged.npy"
+    np.save(path, np.zeros((64, 2)))
+    raw = bytearray(path.read_bytes())
+    raw[40:] = bytes(len(raw) - 40)  # zeros from the middle of the header on
+    path.write_bytes(bytes(raw))
+    with pytest.raises(InputError):
+        read_any(path)

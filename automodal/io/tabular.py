@@ -31,6 +31,7 @@ import os
 import re
 from collections.abc import Sequence
 from pathlib import Path
+from tokenize import TokenError
 from typing import IO, Any
 
 import numpy as np
@@ -469,8 +470,8 @@ def npy_shape(fp: IO[bytes]) -> tuple[int, ...] | None:
             shape, _, _ = np.lib.format.read_array_header_1_0(fp)
         else:
             shape, _, _ = np.lib.format.read_array_header_2_0(fp)
-    except ValueError:
-        return None
+    except (ValueError, SyntaxError, EOFError, TokenError):  # a damaged header: numpy parses
+        return None  # it as a Python literal, so the tokenizer's errors come through too
     return tuple(int(n) for n in shape)
 
 
