@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import click
 import numpy as np
@@ -16,6 +17,9 @@ from automodal.cli._common import (
     test_date_option,
 )
 from automodal.frfdata import QUANTITIES
+
+if TYPE_CHECKING:  # annotations only: --help must not load the numerical core
+    from automodal.core.simulate import MechanicalSystem
 
 
 def parse_dofs(text: str, n_dof: int, option: str) -> list[int]:
@@ -202,25 +206,13 @@ def simulate(output: Path, system_kind: str, dof: int, grid_size: tuple[int, int
         freq = sim.frequency_lines(f_top, lines, fmin)
         data, modes = sim.simulate_test(system, out, inp, freq, quantity, noise, seed,
                                         noise_kind, pure_noise)
-        seed_used = int(data.attributes["seed"])
-        if when is not None:
-            data.attributes["test_date"] = when
-
+        seed_used = _dated(data.attributes, when)
         mpath = modes_path(output)
-        settings = {
-            "command": "automodal simulate",
-            "frf_file": output.name,
-            "system": system.meta,
-            "outputs": [i + 1 for i in out],
-            "inputs": [j + 1 for j in inp],
-            "quantity": quantity,
-            "noise": noise,
-            "noise_kind": noise_kind,
-            "pure_noise": pure_noise,
-            "lines": lines,
-            "band_hz": [float(freq[0]), float(freq[-1])],
-            "seed": seed_used,
-        }
+        settings = _settings(
+            {"frf_file": output.name}, system, out, inp, quantity, noise, seed_used,
+            noise_kind=noise_kind, pure_noise=pure_noise, lines=lines,
+            band_hz=[float(freq[0]), float(freq[-1])],
+        )
         write_frf(output, data)
         write_modes_json(mpath, modes, settings)
 
@@ -237,10 +229,27 @@ def simulate(output: Path, system_kind: str, dof: int, grid_size: tuple[int, int
             )
 
 
-def _simulate_time(output: Path, system, out: list[int], inputs: str | None, excitation: str,
-                   quantity: str, noise: float, seed: int | None, sample_rate: float | None,
-                   duration: float | None, hits: int, pulse_width: float | None,
-                   when: str | None, quiet: bool) -> None:
+def _dated(attributes: dict[str, Any], when: str | None) -> int:
+    """The seed a simulation used (from its file attributes), after dating the file."""
+    if when is not None:
+        attributes["test_date"] = when
+    return int(attributes["seed"])
+
+
+def _settings(head: dict[str, Any], system: MechanicalSystem, out: list[int], inp: list[int],
+              quantity: str, noise: float, seed: int, **rest: Any) -> dict[str, Any]:
+    """The settings stored beside a simulated test: ``head`` (the file written), the system,
+    the 1-based DOFs, quantity, noise and seed, then what is particular to the kind (``rest``,
+    in its order before the seed)."""
+    return {"command": "automodal simulate", **head, "system": system.meta,
+            "outputs": [i + 1 for i in out], "inputs": [j + 1 for j in inp],
+            "quantity": quantity, "noise": noise, **rest, "seed": seed}
+
+
+def _simulate_time(output: Path, system: MechanicalSystem, out: list[int], inputs: str | None,
+                   excitation: str, quantity: str, noise: float, seed: int | None,
+                   sample_rate: float | None, duration: float | None, hits: int,
+                   pulse_width: float | None, when: str | None, quiet: bool) -> None:
     """The time excitations: write the time file and the exact modes beside it."""
     from automodal.core import simulate_time as sim_time
     from automodal.io.modes_file import write_modes_json
@@ -260,28 +269,15 @@ def _simulate_time(output: Path, system, out: list[int], inputs: str | None, exc
             hits, pulse_width)
     except ValueError as exc:  # the sampling asked for does not make a test
         raise click.UsageError(str(exc)) from None
-    seed_used = int(series.attributes["seed"])
-    if when is not None:
-        series.attributes["test_date"] = when
+    seed_used = _dated(series.attributes, when)
     mpath = modes_path(output)
-    settings = {
-        "command": "automodal simulate",
-        "time_file": output.name,
-        "excitation": excitation,
-        "system": system.meta,
-        "outputs": [i + 1 for i in out],
-        "inputs": [j + 1 for j in inp],
-        "inputs_measured": excitation != "ambient",
-        "quantity": quantity,
-        "noise": noise,
-        "noise_kind": "white, std relative to each channel's RMS",
-        "sample_rate_hz": plan.sample_rate,
-        "n_samples": plan.n_samples,
-        "duration_s": plan.duration,
-        "duration_rule": plan.rule,
-        "hold": series.attributes["hold"],
-        "seed": seed_used,
-    }
+    settings = _settings(
+        {"time_file": output.name, "excitation": excitation}, system, out, inp, quantity,
+        noise, seed_used, inputs_measured=excitation != "ambient",
+        noise_kind="white, std relative to each channel's RMS",
+        sample_rate_hz=plan.sample_rate, n_samples=plan.n_samples, duration_s=plan.duration,
+        duration_rule=plan.rule, hold=series.attributes["hold"],
+    )
     if excitation == "hits":
         settings.update(hits=plan.n_hits, pulse_width_s=plan.pulse_width,
                         hit_spacing_samples=plan.hit_spacing, first_hit_sample=plan.first_hit)
