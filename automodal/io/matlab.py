@@ -65,10 +65,7 @@ def _read_mat(p: Path, source: str) -> Channels:
     else:
         arrays, ignored = _read_v5(p, source)
         kind = "MATLAB file"
-    try:
-        return channels_from_named(arrays, "variable", kind, others=ignored)
-    except InputError as exc:
-        raise InputError(exc.problem, source) from None
+    return channels_from_named(arrays, "variable", kind, others=ignored)
 
 
 def _read_v5(p: Path, source: str) -> tuple[dict[str, Any], list[str]]:

@@ -69,10 +69,7 @@ def _read_npy(p: Path, source: str) -> Channels:
         values = np.load(p, allow_pickle=False)
     except Exception as exc:  # noqa: BLE001 - numpy raises many kinds on a damaged file
         raise InputError(f"cannot read as a .npy array: {describe(exc)}", source) from exc
-    try:
-        return channels_from_array(values, "the array", "NumPy array")
-    except InputError as exc:
-        raise InputError(exc.problem, source) from None
+    return channels_from_array(values, "the array", "NumPy array")
 
 
 def read_npz_any(path: str | os.PathLike[str]) -> FRFData | Channels:
@@ -123,12 +120,9 @@ def _read_npz_any(p: Path, source: str) -> FRFData | Channels:
             raise InputError(f"neither FRFs nor samples (keys found: {found}); FRFs need keys "
                              f"'frequency' and 'frf'; samples: {LAYOUT}", source)
         return read_npz(p)
-    try:
-        return channels_from_named({k: _plain(v) for k, v in arrays.items()}, "key",
-                                   "NPZ archive of samples",
-                                   others=[k for k in keys if k not in arrays])
-    except InputError as exc:
-        raise InputError(exc.problem, source) from None
+    return channels_from_named({k: _plain(v) for k, v in arrays.items()}, "key",
+                               "NPZ archive of samples",
+                               others=[k for k in keys if k not in arrays])
 
 
 def _plain(value: np.ndarray) -> Any:

@@ -67,10 +67,7 @@ def _read_tdms(p: Path, source: str) -> Channels:
         raise
     except Exception as exc:  # noqa: BLE001 - npTDMS raises many kinds on a foreign file
         raise InputError(f"cannot read as a TDMS file: {describe(exc)}", source) from exc
-    try:
-        return _channels(channels)
-    except InputError as exc:
-        raise InputError(exc.problem, source) from None
+    return _channels(channels)
 
 
 def _channels(channels: list[tuple[str, str, np.ndarray, dict[str, Any]]]) -> Channels:

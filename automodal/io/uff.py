@@ -443,10 +443,7 @@ def _time_channels(sets: list[tuple[int, dict[str, Any]]], source: str) -> Chann
             raise InputError(f"data set {number} has another time axis ({xs.size} samples) "
                              f"than data set {first_number} ({x.size}): all records must "
                              "be sampled together", source)
-    try:
-        rate = rate_from_time(x, f"the time axis of data set {first_number}")
-    except InputError as exc:
-        raise InputError(exc.problem, source) from None
+    rate = rate_from_time(x, f"the time axis of data set {first_number}")
     channels: dict[tuple[int, int], int] = {}
     info: list[dict[str, Any]] = []
     for number, dset in sets:
