@@ -29,7 +29,7 @@ from automodal.io.sample_arrays import (
     channels_from_named,
     is_samples_key,
 )
-from automodal.io.tabular import npy_shape, npz_members, read_npz
+from automodal.io.tabular import NPZ_KEYS, NPZ_LAYOUT, npy_shape, npz_frfdata, npz_members
 
 __all__ = ["read_npy", "read_npz_any"]
 
@@ -105,8 +105,12 @@ def _read_npz_any(p: Path, source: str) -> FRFData | Channels:
             if samples and frf:
                 raise InputError(f"keys of FRFs ({', '.join(frf)}) and of samples "
                                  f"({', '.join(samples)}) in one archive: keep one kind", source)
-            if not samples:
-                arrays = None
+            if not samples and not frf:
+                found = ", ".join(sorted(keys)) or "none"
+                raise InputError(f"neither FRFs nor samples (keys found: {found}); FRFs need "
+                                 f"keys 'frequency' and 'frf'; samples: {LAYOUT}", source)
+            if frf:
+                arrays = npz_members(archive, NPZ_KEYS, NPZ_LAYOUT, source)
             else:
                 wanted = [k for k in keys if any(k.lower() in names for names in ROLES.values())]
                 arrays = npz_members(archive, wanted, LAYOUT, source)
@@ -114,12 +118,8 @@ def _read_npz_any(p: Path, source: str) -> FRFData | Channels:
         raise
     except Exception as exc:  # noqa: BLE001 - zipfile, zlib and numpy raise many kinds
         raise InputError(f"cannot read as an .npz archive: {describe(exc)}", source) from exc
-    if arrays is None:
-        if not frf:
-            found = ", ".join(sorted(keys)) or "none"
-            raise InputError(f"neither FRFs nor samples (keys found: {found}); FRFs need keys "
-                             f"'frequency' and 'frf'; samples: {LAYOUT}", source)
-        return read_npz(p)
+    if frf:
+        return npz_frfdata(arrays, keys, source)
     return channels_from_named({k: _plain(v) for k, v in arrays.items()}, "key",
                                "NPZ archive of samples",
                                others=[k for k in keys if k not in arrays])

@@ -42,12 +42,13 @@ from automodal.io.channels import Channels, TimeOptions, rate_from_time, time_ax
 from automodal.io.limits import check_not_real_valued, check_size, check_text_size
 from automodal.io.refusal import describe, read_refusing
 
-__all__ = ["npy_shape", "npz_members", "read_csv", "read_npz", "read_table"]
+__all__ = ["NPZ_KEYS", "NPZ_LAYOUT", "npy_shape", "npz_frfdata", "npz_members", "read_csv",
+           "read_npz", "read_table"]
 
 _QUANTITY_LINE = re.compile(r"^#\s*quantity\s*[:=]\s*(\S+)\s*$", re.IGNORECASE)
 _REAL_WRAPPED = re.compile(r"^re(al)?\s*[(\[](.*)[)\]]$", re.IGNORECASE)
 _CSV_LAYOUT = "expected a frequency column, then one real and one imaginary column per FRF"
-_NPZ_LAYOUT = ("expected keys 'frequency' (1-D, Hz) and 'frf' (complex, shape (lines, outputs, "
+NPZ_LAYOUT = ("expected keys 'frequency' (1-D, Hz) and 'frf' (complex, shape (lines, outputs, "
                "inputs) or (lines, outputs)), and optionally 'quantity'")
 
 
@@ -399,20 +400,26 @@ def _read_npz(p: Path, source: str) -> FRFData:
     try:
         loaded = np.load(p, allow_pickle=False)
         if not isinstance(loaded, np.lib.npyio.NpzFile):
-            raise InputError(f"a single .npy array, not an .npz archive; {_NPZ_LAYOUT}",
+            raise InputError(f"a single .npy array, not an .npz archive; {NPZ_LAYOUT}",
                              source)
         with loaded as archive:
             keys = list(archive.files)
-            arrays = npz_members(archive, _NPZ_KEYS, _NPZ_LAYOUT, source)
+            arrays = npz_members(archive, NPZ_KEYS, NPZ_LAYOUT, source)
     except InputError:
         raise
     except Exception as exc:  # noqa: BLE001 - zipfile, zlib and numpy raise many kinds
         raise InputError(f"cannot read as an .npz archive: {describe(exc)}", source) from exc
+    return npz_frfdata(arrays, keys, source)
+
+
+def npz_frfdata(arrays: dict[str, np.ndarray], keys: Sequence[str], source: str) -> FRFData:
+    """The FRFs of an archive's members ``arrays`` (:data:`NPZ_KEYS` that it has, read by
+    :func:`npz_members`); ``keys`` all its members, to name the missing and the ignored."""
     missing = [key for key in ("frequency", "frf") if key not in arrays]
     if missing:
         found = ", ".join(sorted(keys)) or "none"
         raise InputError(f"no key {' or '.join(map(repr, missing))} (keys found: {found}); "
-                         f"{_NPZ_LAYOUT}", source)
+                         f"{NPZ_LAYOUT}", source)
     frequency = np.asarray(arrays["frequency"])
     frf = _npz_frf(arrays["frf"], frequency, source)
     attributes: dict[str, Any] = {"source_format": "NPZ archive"}
@@ -420,7 +427,7 @@ def _read_npz(p: Path, source: str) -> FRFData:
     if "quantity" in arrays:
         quantity = _npz_quantity(arrays["quantity"], source)
         attributes["quantity_source"] = "'quantity' key of the NPZ archive"
-    ignored = sorted(set(keys) - set(_NPZ_KEYS))
+    ignored = sorted(set(keys) - set(NPZ_KEYS))
     if ignored:
         attributes["ignored_keys"] = ", ".join(ignored)
     if frequency.dtype.kind not in "fiu":
@@ -432,7 +439,7 @@ def _read_npz(p: Path, source: str) -> FRFData:
     return data
 
 
-_NPZ_KEYS = ("frequency", "frf", "quantity")
+NPZ_KEYS = ("frequency", "frf", "quantity")
 """The members of an NPZ archive that are read (others are only named)."""
 
 
@@ -481,7 +488,7 @@ def _npz_frf(frf: np.ndarray, frequency: np.ndarray, source: str) -> np.ndarray:
         raise InputError(f"'frf' is not complex (dtype {frf.dtype}); real FRFs are refused, "
                          "not given zero phase", source)
     if frf.ndim not in (2, 3):
-        raise InputError(f"'frf' has shape {frf.shape}; {_NPZ_LAYOUT}", source)
+        raise InputError(f"'frf' has shape {frf.shape}; {NPZ_LAYOUT}", source)
     n_lines = frequency.size if frequency.ndim == 1 else -1
     if frf.shape[0] != n_lines:
         hint = " (transposed? lines must be the first axis)" if n_lines in frf.shape[1:] else ""
