@@ -16,9 +16,7 @@ from typing import Any
 import numpy as np
 
 from automodal.errors import InputError
-
-QUANTITIES = ("displacement", "velocity", "acceleration")
-"""Response quantities an FRF can be given in: receptance, mobility, accelerance."""
+from automodal.quantities import QUANTITIES
 
 
 @dataclass

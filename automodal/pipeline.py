@@ -52,6 +52,7 @@ from automodal.core.pole_map import PoleMap
 from automodal.core.reciprocity import apply_reciprocity
 from automodal.errors import InputError
 from automodal.frfdata import FRFData
+from automodal.quantities import quantity_power
 from automodal.result import IdentifiedMode, NoiseInfo, PoleTable, Result
 from automodal.settings import Settings
 
@@ -433,7 +434,7 @@ def _physical_fit(p: Prepared, modes: list[IdentifiedMode]) -> synthesis.FixedPo
     lam = synthesis.modal_poles(np.array([m.frequency_hz for m in phys], dtype=float),
                                 np.array([m.damping_ratio for m in phys], dtype=float))
     operational = p.data.attributes.get("analysis") == "operational"
-    power = 0 if operational else synthesis.QUANTITY_POWER.get(p.data.quantity, 0)
+    power = 0 if operational else quantity_power(p.data.quantity)
     return synthesis.fit_fixed_poles(p.omega, p.H, p.pole_map.to_model(lam), power)
 
 

@@ -133,7 +133,7 @@ def threshold_options(func: Callable) -> Callable:
 def time_input_options(func: Callable) -> Callable:
     """``--sample-rate``, ``--forces`` and ``--quantity``: what a file of samples does not say
     (``docs/time-input.md``)."""
-    from automodal.frfdata import QUANTITIES
+    from automodal.quantities import QUANTITIES
 
     options = [
         click.option("--sample-rate", type=float, default=None, metavar="HZ",

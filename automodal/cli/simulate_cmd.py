@@ -16,7 +16,7 @@ from automodal.cli._common import (
     exit_on_error,
     test_date_option,
 )
-from automodal.frfdata import QUANTITIES
+from automodal.quantities import QUANTITIES
 
 if TYPE_CHECKING:  # annotations only: --help must not load the numerical core
     from automodal.core.simulate import MechanicalSystem

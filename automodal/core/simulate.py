@@ -24,6 +24,7 @@ import scipy.linalg
 
 from automodal.core.modal import unit_max_shapes
 from automodal.frfdata import QUANTITIES, FRFData
+from automodal.quantities import quantity_power
 
 NOISE_KINDS = ("proportional", "additive")
 """Kinds of measurement noise that :func:`add_noise` can add."""
@@ -477,7 +478,7 @@ def _check_quantity(quantity: str) -> None:
 def _quantity_factor(omega: np.ndarray, quantity: str) -> np.ndarray:
     """``(j w)^p`` that turns receptance into the given quantity."""
     _check_quantity(quantity)
-    return (1j * omega) ** QUANTITIES.index(quantity)
+    return (1j * omega) ** quantity_power(quantity)
 
 
 def frf(

@@ -20,9 +20,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-QUANTITY_POWER = {"displacement": 0, "velocity": 1, "acceleration": 2}
-"""Power of ``jw`` from receptance to each measured quantity."""
-
 
 @dataclass
 class FixedPoleFit:
