@@ -27,11 +27,10 @@ if TYPE_CHECKING:
     from automodal.report_model import Report
     from automodal.result import Result
     from automodal.settings import Settings
-    from automodal.timedata import TimeSeries
     from automodal.tracking import Thresholds
 
-__all__ = ["RunOutcome", "as_frf_input", "check_jobs", "is_batch_input", "read_input",
-           "read_time_or_frf", "run_file", "save", "time_options"]
+__all__ = ["RunOutcome", "check_jobs", "is_batch_input", "read_input", "run_file", "save",
+           "time_options"]
 
 
 @dataclass
@@ -120,31 +119,10 @@ def read_input(path: str | os.PathLike[str], options: TimeOptions | None = None)
     InputError
         If ``path`` is a folder, or the file cannot be read (or the options do not fit it).
     """
-    return as_frf_input(read_time_or_frf(path, options))
-
-
-def read_time_or_frf(path: str | os.PathLike[str],
-                     options: TimeOptions | None = None) -> FRFData | TimeSeries:
-    """Read any supported input file, completed with ``options`` when it holds samples.
-
-    Raises
-    ------
-    InputError
-        If ``path`` is a folder, or the file cannot be read (or the options do not fit it).
-    """
-    if Path(path).is_dir():
-        raise InputError("is a folder, not an input file", os.fspath(path))
+    from automodal.core.from_time import as_frfdata
     from automodal.io.readers import read_any
 
-    return read_any(path, options)
-
-
-def as_frf_input(data: FRFData | TimeSeries) -> FRFData:
-    """What a reader gave, as the FRFs the pipeline identifies
-    (:func:`automodal.core.from_time.as_frfdata`)."""
-    from automodal.core.from_time import as_frfdata
-
-    return as_frfdata(data)
+    return as_frfdata(read_any(path, options))
 
 
 def save(out: str | os.PathLike[str], report: Report, result: Result) -> Path:
