@@ -1010,13 +1010,13 @@ def _with_mode_numbers(modes: list[ReportMode], numbered: bool) -> list[ReportMo
     as the pipeline numbers them (modes without a frequency last)."""
     if numbered:
         return modes
-    order = sorted(range(len(modes)), key=lambda k: (
-        modes[k].frequency_hz is None, modes[k].frequency_hz or 0.0, k))
-    number = 0
-    for k in order:
-        m = modes[k]
-        number += m.physical
-        m.mode_number = number if m.physical else None
+    from automodal.core.matching import mode_numbers
+
+    numbers = mode_numbers(
+        np.array([np.nan if m.frequency_hz is None else m.frequency_hz for m in modes]),
+        np.array([bool(m.physical) for m in modes], dtype=bool))
+    for m, number in zip(modes, numbers):
+        m.mode_number = int(number) if number else None
     return modes
 
 

@@ -12,11 +12,32 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["INADMISSIBLE", "ModeTable", "cluster_mac", "match"]
+__all__ = ["INADMISSIBLE", "ModeTable", "cluster_mac", "match", "mode_numbers"]
 
 INADMISSIBLE = 1e6
 """Cost of a pair outside the matching gate (never chosen over an admissible one)."""
 
+
+
+def mode_numbers(frequency_hz: np.ndarray, physical: np.ndarray) -> np.ndarray:
+    """The numbers users see: the physical modes 1, 2, ... by frequency (non-finite
+    frequencies last, ties in the given order), 0 for the others.
+
+    Parameters
+    ----------
+    frequency_hz : ndarray, shape (n,)
+    physical : ndarray of bool, shape (n,)
+
+    Returns
+    -------
+    ndarray of int, shape (n,)
+    """
+    f = np.asarray(frequency_hz, dtype=float)
+    numbers = np.zeros(f.size, dtype=int)
+    order = np.argsort(np.where(np.isfinite(f), f, np.inf), kind="stable")
+    chosen = order[np.asarray(physical, dtype=bool)[order]]
+    numbers[chosen] = np.arange(1, chosen.size + 1)
+    return numbers
 
 @dataclass
 class ModeTable:
@@ -59,12 +80,7 @@ class ModeTable:
 
     def __post_init__(self) -> None:
         if self.numbers is None:
-            numbers = np.zeros(self.ids.size, dtype=int)
-            order = np.argsort(np.where(np.isfinite(self.frequency_hz), self.frequency_hz,
-                                        np.inf), kind="stable")
-            physical = order[self.physical[order]]
-            numbers[physical] = np.arange(1, physical.size + 1)
-            self.numbers = numbers
+            self.numbers = mode_numbers(self.frequency_hz, self.physical)
 
     @property
     def n_modes(self) -> int:

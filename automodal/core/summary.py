@@ -14,6 +14,7 @@ from dataclasses import replace
 import numpy as np
 
 from automodal.core import clustering, physicalness
+from automodal.core.matching import mode_numbers
 from automodal.core.modal import ModeSet, mpc, normalise_shapes, unit_max_shapes
 from automodal.core.pole_map import PoleMap
 from automodal.core.refine import duplicate_poles, refine_poles
@@ -174,11 +175,11 @@ def _numbered(modes: list[IdentifiedMode]) -> list[IdentifiedMode]:
     """The modes sorted by frequency, ``id`` from 1; the physical ones also numbered from 1
     (``mode_number``), the others ``None``."""
     modes.sort(key=lambda m: (not np.isfinite(m.frequency_hz), np.nan_to_num(m.frequency_hz)))
-    physical = 0
-    for i, m in enumerate(modes, start=1):
+    numbers = mode_numbers(np.array([m.frequency_hz for m in modes], dtype=float),
+                           np.array([m.physical for m in modes], dtype=bool))
+    for i, (m, number) in enumerate(zip(modes, numbers), start=1):
         m.id = i
-        physical += m.physical
-        m.mode_number = physical if m.physical else None
+        m.mode_number = int(number) if number else None
     return modes
 
 
