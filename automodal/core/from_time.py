@@ -141,8 +141,10 @@ def frfdata_from_time(
         ``exponential_decay_per_s`` (impact); ``references``, ``reference_names``,
         ``max_lag_samples``, ``max_lag_s``, ``lag_window``, ``lag_window_tail``,
         ``lag_window_decay_per_s`` (operational). A window decay ``a`` > 0 adds ``a`` to
-        every pole's decay rate: correct identified damping with
-        :func:`~automodal.core.spectra.undo_exponential_window`.
+        every pole's decay rate. :func:`as_frfdata` records it (and, for half spectra, the
+        sample rate) in the attributes, from which the pipeline maps the poles back
+        (:class:`~automodal.core.pole_map.PoleMap`); FRFs identified from this function's
+        result alone need :func:`~automodal.core.spectra.undo_exponential_window`.
 
     Raises
     ------

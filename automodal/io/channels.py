@@ -52,8 +52,8 @@ __all__ = [
 ]
 
 MIN_SAMPLES = 64
-"""Fewest samples per channel a time series needs (a spectrum of 33 lines); the same rule as
-the HDF5 ``/time`` group's (:data:`automodal.io.time_file.MIN_SAMPLES`)."""
+"""Fewest samples per channel a time series needs (a spectrum of 33 lines), in every format
+(the HDF5 ``/time`` group's reader uses it too)."""
 
 RATE_TOLERANCE = 1e-4
 """Largest relative difference between a sample rate the file carries and ``--sample-rate``

@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from automodal.core.synthesis import modal_poles
 from automodal.errors import InputError
 from automodal.io.atomic import atomic_path
 from automodal.report_model import Report, ReportMode
@@ -110,9 +111,7 @@ def write_modes_uff(path: str | os.PathLike[str], report: Report) -> None:
     for mode in report.physical_modes:
         values = np.zeros((per_node, nodes.size), dtype=complex)
         values[component, row] = sign * np.nan_to_num(mode.shape, nan=0.0)
-        w = 2.0 * np.pi * float(mode.frequency_hz)
-        zeta = float(mode.damping_ratio or 0.0)
-        eig = complex(-zeta * w, w * np.sqrt(max(0.0, 1.0 - zeta**2)))
+        eig = complex(modal_poles(float(mode.frequency_hz), float(mode.damping_ratio or 0.0)))
         sets.append(pyuff.prepare_55(
             model_type=1, id1="automodal identified mode", id2=_mode_line(mode),
             id3=f"report {report.input.path or ''}"[:80], id4="NONE", id5="NONE",

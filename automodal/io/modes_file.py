@@ -26,6 +26,7 @@ import numpy as np
 
 from automodal import __version__
 from automodal.core.simulate import Modes
+from automodal.core.synthesis import modal_poles
 from automodal.errors import InputError
 from automodal.io.atomic import atomic_path
 from automodal.io.json_safe import json_safe
@@ -116,9 +117,8 @@ def read_modes_json(path: str | os.PathLike) -> Modes:
         if "poles" in doc:
             poles = _complex_array(doc["poles"], "poles").reshape(-1)
         else:
-            w = 2 * np.pi * np.asarray(doc["frequency_hz"], dtype=float)
-            z = np.asarray(doc["damping_ratio"], dtype=float)
-            poles = w * (-z + 1j * np.sqrt(1 - z**2))
+            poles = modal_poles(np.asarray(doc["frequency_hz"], dtype=float),
+                                np.asarray(doc["damping_ratio"], dtype=float))
         shapes = _complex_array(doc["shapes"], "shapes").reshape(int(doc["n_outputs"]), n_modes)
         residues = None
         if "residues" in doc:

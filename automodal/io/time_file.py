@@ -18,6 +18,7 @@ import numpy as np
 
 from automodal.frfdata import quantity_problem
 from automodal.io.atomic import atomic_path
+from automodal.io.channels import MIN_SAMPLES
 from automodal.io.hdf5 import (
     check_dataset_size,
     dataset,
@@ -33,8 +34,6 @@ from automodal.timedata import TimeSeries
 
 __all__ = ["MIN_SAMPLES", "read_time", "write_time"]
 
-MIN_SAMPLES = 64
-"""Fewest samples per channel a time series needs (a spectrum of 33 lines)."""
 
 
 # --------------------------------------------------------------------------------- reading
