@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -108,13 +108,19 @@ def modes_of_discrete(
         Sorted by natural frequency.
     """
     mu, V = np.linalg.eig(Ad)
+    modes = modes_of_eigen(mu, Cd @ V, T)
+    if Bd is None:
+        return modes
+    sel = oscillatory_order(poles_d2c(mu, T))
+    return replace(modes, participation=np.linalg.solve(V, Bd)[sel])
+
+
+def modes_of_eigen(mu: np.ndarray, CV: np.ndarray, T: float) -> ModeSet:
+    """:func:`modes_of_discrete` (without participation) of a model whose eigenvalues
+    ``mu`` and output-side eigenvectors ``CV = Cd V`` are known already."""
     lam = poles_d2c(mu, T)
     sel = oscillatory_order(lam)
-    shapes = normalise_shapes(Cd @ V[:, sel])
-    part = None
-    if Bd is not None:
-        part = np.linalg.solve(V, Bd)[sel]
-    return ModeSet(poles=lam[sel], mu=mu[sel], shapes=shapes, participation=part)
+    return ModeSet(poles=lam[sel], mu=mu[sel], shapes=normalise_shapes(CV[:, sel]))
 
 
 def mac(a: np.ndarray, b: np.ndarray) -> np.ndarray:

@@ -150,8 +150,9 @@ def misfit_scan(
         Parameters per mode and the false-alarm quantile of the order test (with
         ``variance``, for the early stop).
     models : list, optional
-        When given, ``(n, A, C)`` of every evaluated order is appended to it (the poles and
-        shapes of a stabilization diagram, :mod:`automodal.core.stabilization`).
+        When given, ``(n, mu, C V)`` of every evaluated order is appended to it (the
+        eigenvalues of ``A`` and the output-side eigenvectors: the poles and shapes of a
+        stabilization diagram, :mod:`automodal.core.stabilization`).
 
     Returns
     -------
@@ -173,10 +174,12 @@ def misfit_scan(
     chi2: list[float] = []
     for i, n in enumerate(orders):
         A, C = subspace.shift_invariance(O[:, :n], ny, basis)
+        lam, V = np.linalg.eig(A)  # one eigendecomposition for B/D, the response, the poles
+        CV = C @ V
         if models is not None:
-            models.append((int(n), A, C))
-        B, D = subspace.estimate_bd(z[sub], H[sub], A, C, weights=w_sub)
-        Hm = subspace.frequency_response(A, B, C, D, z[sub])
+            models.append((int(n), lam, CV))
+        B, D = subspace.estimate_bd(z[sub], H[sub], A, C, weights=w_sub, eigen=(lam, V))
+        Hm = D[None] + subspace.modal_sum(CV, lam, np.linalg.solve(V, B), z[sub])
         out.append(log_misfit(Hm, H[sub]))
         if var_sub is None:
             if (stop_after is not None and n >= stop_after
@@ -339,7 +342,7 @@ def scan(
 
     With ``variance`` (the noise of ``H``), a stage is extended while its significant
     order (:func:`significant_order`) lies in the last third of it, and the whitened
-    residual is returned too. ``models`` (optional) receives ``(n, A, C)`` of every order
+    residual is returned too. ``models`` (optional) receives ``(n, mu, C V)`` of every order
     of the last stage (see :func:`misfit_scan`).
 
     Returns
@@ -399,7 +402,7 @@ class OrderChoice:
         The whitened residual per scanned order (with a noise model).
     rule : str
         ``"floor"`` or ``"significance"``: how ``n0`` was chosen.
-    models : list of (n, A, C)
+    models : list of (n, mu, C V)
         The discrete-time state and output matrices of every scanned order (of the scan
         that chose ``n0``), for the stabilization diagram.
     """

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from automodal.core.modal import mac, modes_of_discrete
+from automodal.core.modal import mac, modes_of_eigen
 from automodal.core.pole_map import PoleMap
 
 FREQUENCY_TOLERANCE = 0.01
@@ -73,8 +73,10 @@ def stabilization_poles(
 
     Parameters
     ----------
-    models : sequence of (n, A, C)
-        Discrete-time state and output matrices of increasing order ``n``.
+    models : sequence of (n, mu, C V)
+        Eigenvalues of the discrete-time state matrix and output-side eigenvectors of the
+        models of increasing order ``n`` (what :func:`automodal.core.order.misfit_scan`
+        keeps).
     T : float
         Bilinear scale of the models.
     band_hz : (float, float)
@@ -92,8 +94,8 @@ def stabilization_poles(
     lo, hi = band_hz
     cols: list[tuple[np.ndarray, ...]] = []
     prev: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
-    for n, A, C in models:
-        modes = modes_of_discrete(A, C, T)
+    for n, mu, CV in models:
+        modes = modes_of_eigen(mu, CV, T)
         lam = modes.poles if pole_map is None else pole_map(modes.poles)
         f = np.abs(lam) / (2.0 * np.pi)
         zeta = -lam.real / np.where(np.abs(lam) > 0, np.abs(lam), 1.0)
