@@ -212,10 +212,11 @@ def _weighted(
             variance / (scales**2)[None, :, None])
 
 
-def _oriented(variance: np.ndarray, reciprocal: bool) -> np.ndarray:
-    """A per-entry array of the data's orientation in the analysed one (swapped inputs and
-    outputs under reciprocity)."""
-    return variance.transpose(0, 2, 1) if reciprocal else variance
+def _oriented(a: np.ndarray, reciprocal: bool) -> np.ndarray:
+    """A per-entry array (``(..., outputs, inputs)``) in the other orientation: the data's
+    in the analysed one, or back (inputs and outputs swapped under reciprocity; the swap is
+    its own inverse)."""
+    return np.swapaxes(a, -1, -2) if reciprocal else a
 
 
 def _estimate_noise(data: FRFData, freq: np.ndarray, H: np.ndarray) -> NoiseEstimate:
@@ -322,7 +323,7 @@ def _identify(data: FRFData, s: Settings, progress: Callable[[int], None] | None
         reference_model=ref.model,
         reciprocity=p.reciprocal,
         frf_fit=_frf_fit(p, fit.synthesized),
-        frf_fit_error=_input_oriented(fit.normalised_error, p.reciprocal),
+        frf_fit_error=_oriented(fit.normalised_error, p.reciprocal),
         stabilization=stabilization.stabilization_poles(
             choice.models, p.T, p.band_hz, s.zeta_max, p.pole_map),
         shape_channels=list(p.data.input_names if p.reciprocal else p.data.output_names),
@@ -413,13 +414,8 @@ def _orders_info(
 
 def _frf_fit(p: Prepared, H_syn: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(frequency_hz, measured, synthesized)`` in the input's orientation."""
-    return (p.frequency, np.ascontiguousarray(_input_oriented(p.H, p.reciprocal)),
-            np.ascontiguousarray(_input_oriented(H_syn, p.reciprocal)))
-
-
-def _input_oriented(a: np.ndarray, reciprocal: bool) -> np.ndarray:
-    """An analysed-orientation array (``(..., ny, nu)``) in the input's orientation."""
-    return np.swapaxes(a, -1, -2) if reciprocal else a
+    return (p.frequency, np.ascontiguousarray(_oriented(p.H, p.reciprocal)),
+            np.ascontiguousarray(_oriented(H_syn, p.reciprocal)))
 
 
 def _physical_fit(p: Prepared, modes: list[IdentifiedMode]) -> synthesis.FixedPoleFit:

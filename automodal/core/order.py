@@ -20,7 +20,12 @@ from automodal.core.magnitude import (
     peak_threshold,
     roughness,
 )
-from automodal.core.whitening import MODEL_PRECISION
+from automodal.core.whitening import (
+    MODEL_PRECISION,
+    mode_parameters,
+    test_variance,
+    whitened_residual,
+)
 from automodal.errors import InputError
 
 BOOTSTRAP_LINE_FRACTION = 0.6
@@ -163,8 +168,6 @@ def misfit_scan(
     chi2 : ndarray
         With ``variance`` only: the whitened residual per order (on the lines of the fit).
     """
-    from automodal.core.whitening import whitened_residual
-
     N, ny, _ = H.shape
     O, _, _ = subspace.observability(basis, H, int(np.max(orders)), weights=weights)
     sub = np.unique(np.linspace(0, N - 1, min(N, max_lines)).round().astype(int))
@@ -493,8 +496,6 @@ def select_orders(
         orders, misfit = scan(z, H, weights, n_scan, count_peaks(H), models=models)
         n0 = order_at_floor(orders, misfit)
     else:
-        from automodal.core.whitening import mode_parameters, test_variance
-
         p = mode_parameters(ny, nu)
         orders, misfit, chi2 = scan(z, H, weights, n_scan, count_peaks(H),
                                     test_variance(H, variance), p, z_alarm, models=models)

@@ -183,16 +183,6 @@ def _numbered(modes: list[IdentifiedMode]) -> list[IdentifiedMode]:
     return modes
 
 
-def physical_reference_modes(
-    modes: list[IdentifiedMode], refsub: clustering.ReferenceSubspaces
-) -> np.ndarray:
-    """Indices (sorted, unique) of the reference modes that represent the physical modes'
-    clusters: the modes an FRF synthesised from the physical modes keeps."""
-    keep = {int(i) for m in modes if m.physical
-            for i in refsub.groups[m.cluster][: m.cluster_dim]}
-    return np.array(sorted(keep), dtype=int)
-
-
 NEAR_POLE = 2.0
 """Poles of the reference model within this many half-power half-bandwidths
 (``|Re lambda|``) of a refined pole are its companions: an over-sized model often splits a
