@@ -109,6 +109,13 @@ def checked_test_date(text: str) -> str:
     return when
 
 
+def _stacked(options: list[Callable], func: Callable) -> Callable:
+    """``func`` decorated with ``options``, which show in ``--help`` in the given order."""
+    for option in reversed(options):
+        func = option(func)
+    return func
+
+
 def threshold_options(func: Callable) -> Callable:
     """The alarm thresholds of a baseline check (:class:`automodal.tracking.Thresholds`),
     ``None`` when not given: ``--shift-sigmas``, ``--min-shift-percent``, ``--min-mac``.
@@ -125,9 +132,7 @@ def threshold_options(func: Callable) -> Callable:
                      help="Alarm when a mode's shape has a MAC below this with the "
                      "baseline's. Default 0.95."),
     ]
-    for option in reversed(options):
-        func = option(func)
-    return func
+    return _stacked(options, func)
 
 
 def time_input_options(func: Callable) -> Callable:
@@ -145,9 +150,7 @@ def time_input_options(func: Callable) -> Callable:
         click.option("--quantity", type=click.Choice(QUANTITIES), default=None,
                      help="Time input: the response quantity, when the file does not say."),
     ]
-    for option in reversed(options):
-        func = option(func)
-    return func
+    return _stacked(options, func)
 
 
 def thresholds_from(shift_sigmas: float | None, min_shift_percent: float | None,

@@ -44,11 +44,9 @@ def export(report_path: str, output: Path, polar: bool, geometry: str | None, qu
     with exit_on_error(debug):
         if not output.parent.is_dir():
             raise InputError("the folder to write into does not exist", output)
-        from automodal.io.mode_export import EXPORT_SUFFIXES, export_modes
+        from automodal.io.mode_export import export_modes, export_suffix
 
-        if output.suffix.lower() not in EXPORT_SUFFIXES:
-            raise InputError(f"unknown export type {output.suffix or '(none)'!r}:"
-                             " use .uff, .unv or .csv", output)
+        export_suffix(output)  # refused before the report is read
         from automodal.io.report import load_report
 
         report = load_report(report_path)

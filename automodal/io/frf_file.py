@@ -189,15 +189,15 @@ def _checked_attributes(attributes: dict[str, Any]) -> dict[str, Any]:
     decay in 1/s, which the pipeline adds to every pole) that is not a finite number >= 0,
     and a ``discrete_sample_rate_hz`` (the FRFs are spectra of sampled signals) that is
     not a finite number > 0."""
-    for name, low, unit in (("window_decay_per_s", ">= 0", "1/s"),
-                            ("discrete_sample_rate_hz", "> 0", "Hz")):
+    for name, zero_allowed, unit in (("window_decay_per_s", True, "1/s"),
+                                     ("discrete_sample_rate_hz", False, "Hz")):
         value = attributes.get(name)
         if value is not None and (
             isinstance(value, bool) or not isinstance(value, (int, float))
-            or not math.isfinite(value) or value < 0 or (value == 0 and low == "> 0")
+            or not math.isfinite(value) or value < 0 or (value == 0 and not zero_allowed)
         ):
-            raise Refused(f"attribute {name} must be a finite number {low} ({unit}),"
-                          f" not {value!r}")
+            raise Refused(f"attribute {name} must be a finite number "
+                          f"{'>= 0' if zero_allowed else '> 0'} ({unit}), not {value!r}")
     return attributes
 
 

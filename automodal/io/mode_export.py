@@ -29,11 +29,26 @@ from automodal.errors import InputError
 from automodal.io.atomic import atomic_path
 from automodal.report_model import Report, ReportMode
 
-__all__ = ["EXPORT_SUFFIXES", "export_modes", "shape_dofs", "write_modes_csv",
+__all__ = ["EXPORT_SUFFIXES", "export_modes", "export_suffix", "shape_dofs", "write_modes_csv",
            "write_modes_uff"]
 
 EXPORT_SUFFIXES = (".uff", ".unv", ".csv")
 _AXES = {"X": 0, "Y": 1, "Z": 2, "RX": 3, "RY": 4, "RZ": 5}
+
+
+def export_suffix(path: str | os.PathLike[str]) -> str:
+    """The export type of ``path``: its suffix in lower case, one of :data:`EXPORT_SUFFIXES`.
+
+    Raises
+    ------
+    InputError
+        For another suffix.
+    """
+    suffix = Path(path).suffix
+    if suffix.lower() not in EXPORT_SUFFIXES:
+        raise InputError(f"unknown export type {suffix or '(none)'!r}: use .uff, .unv or .csv",
+                         os.fspath(path))
+    return suffix.lower()
 
 
 def export_modes(path: str | os.PathLike[str], report: Report, polar: bool = False) -> int:
@@ -50,10 +65,7 @@ def export_modes(path: str | os.PathLike[str], report: Report, polar: bool = Fal
         For another suffix, a report without physical modes, or channels whose nodes
         and directions collide (nothing is written).
     """
-    suffix = Path(path).suffix.lower()
-    if suffix not in EXPORT_SUFFIXES:
-        raise InputError(f"unknown export type {suffix or '(none)'!r}: use .uff, .unv or .csv",
-                         os.fspath(path))
+    suffix = export_suffix(path)
     modes = report.physical_modes
     if not modes:
         raise InputError("the report has no physical mode to export", os.fspath(path))

@@ -458,10 +458,12 @@ def _time_channels(sets: list[tuple[int, dict[str, Any]]], source: str) -> Chann
     says = any(t == _FORCE_TYPE or t in _MOTION_TYPES for t in types)
     forces = [i for i, t in enumerate(types) if t == _FORCE_TYPE] if says else None
     responses = [s for s, t in zip(sets, types) if t != _FORCE_TYPE]
-    quantity, note = _quantity(responses, source) if responses else (None, "not stated")
+    quantity = None  # unless a response states it: then the sets must agree
+    if any(_set_quantity(dset)[0] is not None for _, dset in responses):
+        quantity, _ = _quantity(responses, source)
     samples = np.column_stack([np.asarray(dset["data"], dtype=np.float64) for _, dset in sets])
     return Channels(samples=samples, names=names, sample_rate=rate,
                     rate_source=f"the time axis of data set {first_number}", forces=forces,
-                    quantity=None if note.startswith("not stated") else quantity,
+                    quantity=quantity,
                     attributes={"source_format": _format_name(sets).replace(
                         "dataset 58", "dataset 58 time records")})
