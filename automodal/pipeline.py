@@ -33,6 +33,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from automodal.band_merge import merge_sub_bands, shared_progress
 from automodal.core import (
     bootstrap,
     checks,
@@ -40,6 +41,7 @@ from automodal.core import (
     reference,
     replicates,
     stabilization,
+    sub_bands,
     subspace,
     summary,
     synthesis,
@@ -259,15 +261,49 @@ def identify(
     from threadpoolctl import threadpool_limits
 
     data = as_frfdata(data)  # input stage: time series become FRFs here
+    s = settings or Settings()
     # One BLAS thread for the many small dense problems (measured: 0.75 s against 0.9 s
     # end to end on a 6-DOF chain, and far steadier on a busy machine); the replicates
     # share the cores through worker threads (automodal.core.parallel).
     with threadpool_limits(1):
-        return _identify(data, settings or Settings(), progress)
+        return _identify(data, s, progress)
 
 
-def _identify(data: FRFData, s: Settings, progress: Callable[[int], None] | None) -> Result:
-    """:func:`identify` with BLAS limited by the caller."""
+def _identify_sub_bands(
+    data: FRFData, s: Settings, plan: list[sub_bands.SubBand], warnings: list[str],
+    progress: Callable[[int], None] | None, t0: float, order_of_whole: int,
+    part: bool = False,
+) -> Result:
+    """One identification per sub-band of ``plan``, merged
+    (:func:`automodal.band_merge.merge_sub_bands`); ``warnings`` are the whole band's so
+    far, ``t0`` when the run started, ``order_of_whole`` the reference order one model of
+    the band would have had, ``part`` as in :func:`_identify`."""
+    tell = shared_progress(progress, len(plan))
+    results = [_identify(data, replace(s, band_hz=b.analysed_hz), tell, part=True)
+               for b in plan]
+    if any(r.shape_channels != results[0].shape_channels for r in results):
+        # the data checks dropped different channels in different sub-bands: the shapes
+        # cannot be put side by side, so the band is identified as one
+        return _identify(data, replace(s, sub_bands=False), progress, part)
+    warnings.append(
+        f"[{plan[0].analysed_hz[0]:g}, {plan[-1].analysed_hz[1]:g}] Hz was identified in"
+        f" {len(plan)} sub-bands, cut at valleys between resonance"
+        f" peaks (one model of it would have had {order_of_whole} states; sub_bands=False"
+        " or --order keeps one model)")
+    merged = merge_sub_bands(results, plan, s.to_dict(), warnings, 0.0)
+    if not part:
+        lines = merged.frf_fit[0] if merged.frf_fit is not None else data.frequency
+        merged.warnings.extend(resolution_warnings(merged.modes, lines,
+                                                   pole_map_of(data).shift))
+    merged.runtime_s = time.perf_counter() - t0
+    return merged
+
+
+def _identify(
+    data: FRFData, s: Settings, progress: Callable[[int], None] | None, part: bool = False
+) -> Result:
+    """:func:`identify` with BLAS limited by the caller (``part``: one sub-band of a split
+    band, whose modes' resolution warnings the merged result gives)."""
     t0 = time.perf_counter()
     warnings: list[str] = []
     p = prepare(data, s, warnings)
@@ -280,6 +316,12 @@ def _identify(data: FRFData, s: Settings, progress: Callable[[int], None] | None
                         " smallest one: envelope weighting and the misfit-floor order used")
         p = p.enveloped()
         choice = order.select_orders(p.z, p.Hs, p.line_weights, s.max_order, p.data.source)
+    if s.sub_bands and s.max_order is None:
+        work = sub_bands.replicate_work(*p.Hs.shape, choice.reference)
+        plan = sub_bands.plan_sub_bands(p.frequency, p.Hs, sub_bands.sub_band_count(work))
+        if len(plan) > 1:  # a sub-band too costly is split again in its own run
+            return _identify_sub_bands(data, s, plan, warnings, progress, t0,
+                                       choice.reference, part)
     if s.max_order is not None and choice.n0 >= choice.limit:
         warnings.append(
             f"the largest model order {s.max_order} (states, two per mode: at most "
@@ -309,7 +351,8 @@ def _identify(data: FRFData, s: Settings, progress: Callable[[int], None] | None
             modes, ref.modal.poles, ref.modal.oscillatory, p.omega, p.H, p.noise_variance,
             p.pole_map)
     fit = _physical_fit(p, modes)
-    warnings.extend(resolution_warnings(modes, p.frequency, p.pole_map.shift))
+    if not part:
+        warnings.extend(resolution_warnings(modes, p.frequency, p.pole_map.shift))
     return Result(
         modes=modes,
         trashbox_members=int(np.sum(clusters.labels == TRASHBOX)),

@@ -28,7 +28,7 @@ def test_defaults_are_valid_and_to_dict_is_unchanged():
     assert s.to_dict() == {
         "band_hz": None, "n_bootstrap": 100, "seed": 0, "max_order": None, "threshold": 0.8,
         "zeta_max": 0.2, "min_physicalness": 0.5, "coalescence": 1.0, "resample": "auto",
-            "weighting": "auto",
+            "weighting": "auto", "sub_bands": True,
     }
     assert Settings(band_hz=(1, 20)).to_dict()["band_hz"] == [1.0, 20.0]
 

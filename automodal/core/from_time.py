@@ -204,7 +204,10 @@ def frfdata_from_time(
         input_names = ts.input_names
         attributes["analysis"] = "h1"
 
-    keep = (freq > 0) & (freq <= usable_fraction * fs / 2.0 * (1 + 1e-12))
+    top = usable_fraction * fs / 2.0
+    if "force_limit_hz" in info:  # impacts: only where the hammer excites the structure
+        top = min(top, info["force_limit_hz"])
+    keep = (freq > 0) & (freq <= top * (1 + 1e-12))
     if np.count_nonzero(keep) < 2:
         raise ValueError("the record is too short: fewer than 2 frequency lines")
     info["band_hz"] = [float(freq[keep][0]), float(freq[keep][-1])]
@@ -264,6 +267,7 @@ def _impact(
     if length < 32:
         raise ValueError(f"the records after the hits are too short ({length} samples)")
     u, kept = spectra.force_window(ts.inputs, starts, length)
+    force_limit = spectra.force_band_limit(u, starts, length, fs)
     decay = spectra.decay_needed(ts.outputs, starts, length, fs)
     u = spectra.exponential_records(u, starts, length, fs, decay)
     y = spectra.exponential_records(ts.outputs, starts, length, fs, decay)
@@ -280,6 +284,8 @@ def _impact(
         hits=[int(s) for s in starts],
         force_window_samples=int(kept),
         exponential_decay_per_s=float(decay),
+        force_limit_hz=force_limit,
+        force_drop_db=spectra.FORCE_DROP_DB,
         n_records=int(rec.shape[0]),
         segments_per_record=1,
     )

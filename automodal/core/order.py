@@ -297,23 +297,34 @@ def lines_needed(n: int, ny: int, nu: int) -> int:
 
 
 def count_peaks(H: np.ndarray, window: int = 5) -> int:
-    """Resonance-like peaks of the mean magnitude over channels (sizes the order scan).
+    """Resonance-like peaks of the mean magnitude over channels (sizes the order scan):
+    the number of :func:`peak_lines`."""
+    return int(peak_lines(H, window).size)
+
+
+def peak_lines(H: np.ndarray, window: int = 5) -> np.ndarray:
+    """Lines of the resonance-like peaks of the mean magnitude over channels.
 
     A line counts when it is the largest within ``window`` lines on either side and stands
     above the smallest value there by more than the threshold: ``max(0.5, 6 s)`` on the
     natural-log scale, with ``s`` the line-to-line roughness of the log magnitude (robust:
     median absolute second difference; :mod:`automodal.core.magnitude`). On pure noise
     the roughness is large and few "peaks" count, which keeps the scan short.
+
+    Returns
+    -------
+    ndarray of int
+        Increasing line indices.
     """
     mag = mean_magnitude(H)
     if not np.any(mag > 0):
-        return 0
+        return np.zeros(0, dtype=int)
     logm = log_magnitude(mag, 1e-12)
     thr = peak_threshold(roughness(logm))
     size = 2 * window + 1
     is_max = logm >= running_max(logm, size)
     rise = logm - running_min(logm, 8 * size)
-    return int(np.count_nonzero(is_max & (rise > thr)))
+    return np.flatnonzero(is_max & (rise > thr))
 
 
 def scan_orders(n_scan: int) -> np.ndarray:

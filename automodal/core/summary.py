@@ -168,10 +168,10 @@ def summarise_clusters(
                     reference_mode=int(group[min(r, group.size - 1)]),
                 )
             )
-    return _numbered(modes)
+    return numbered(modes)
 
 
-def _numbered(modes: list[IdentifiedMode]) -> list[IdentifiedMode]:
+def numbered(modes: list[IdentifiedMode]) -> list[IdentifiedMode]:
     """The modes sorted by frequency, ``id`` from 1; the physical ones also numbered from 1
     (``mode_number``), the others ``None``."""
     modes.sort(key=lambda m: (not np.isfinite(m.frequency_hz), np.nan_to_num(m.frequency_hz)))
@@ -280,4 +280,4 @@ def refine_physical_modes(
             damping_ci95=(float(z[j] - 1.96 * z_std[j]), float(z[j] + 1.96 * z_std[j])),
             estimator="ml",
         ))
-    return _numbered(out)
+    return numbered(out)

@@ -1,0 +1,150 @@
+"""Sub-bands: a wide band with many resonances identified piece by piece.
+
+One model of a whole band needs about two states per resonance in it, and a subspace
+identification of order ``n`` over ``N`` lines costs about ``N n^2`` per bootstrap replicate
+(the projection) and ``n^3`` (the eigenvalues): a 10 000-line hammer FRF with about 30
+resonances took minutes as one model of 256 states. Split into ``K`` sub-bands with a
+``K``-th of the resonances each, the orders fall about ``K`` times and so does each
+sub-band's line count: the work falls about ``K^2`` times. A band is split only when the
+reference model the order scan chose would cost more than :data:`WORK_LIMIT` per replicate,
+into the fewest sub-bands that bring the sum of their work under it.
+
+The cuts are placed at the deepest valley of the mean magnitude between two neighbouring
+resonance peaks, so that no resonance is cut. Each sub-band is analysed over its core
+(the lines between its cuts) plus one resonance beyond each cut: a mode near a cut is fitted
+with its neighbour in the model rather than in the residual. A mode belongs to the sub-band
+whose core holds its frequency; the modes found in the overlaps are the neighbours' and are
+dropped there.
+
+Pure functions on arrays: the pipeline (:func:`automodal.pipeline.identify`) runs one
+identification per sub-band and merges them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from automodal.core.magnitude import log_magnitude, mean_magnitude
+from automodal.core.order import lines_needed, peak_lines
+from automodal.core.subspace import block_rows
+
+__all__ = ["WORK_LIMIT", "SubBand", "plan_sub_bands", "replicate_work", "sub_band_count"]
+
+WORK_LIMIT = 2e8
+"""Largest estimated work of one bootstrap replicate (multiply-adds of its projection,
+:func:`replicate_work`) before a band is split. A replicate of the LADISK hammer FRF as one
+model (10 000 lines, 256 states, one output: 2.6e9) took 0.66 s, 100 of them 66 s; at 2e8
+the 100 replicates take about 5 s. The family's test systems (at most 1e8: 40-output grids
+over 3 000 lines) stay whole: splitting adds sub-band edges, where noise modes can pass for
+physical, so a model that is cheap enough is identified whole."""
+
+
+def replicate_work(n_lines: int, ny: int, nu: int, order: int) -> float:
+    """Estimated multiply-adds of one replicate's projection: ``N (q (ny + nu))^2`` for a
+    model of ``order`` states with its block rows ``q``
+    (:func:`automodal.core.subspace.block_rows`)."""
+    return float(n_lines) * float(block_rows(int(order), ny) * (ny + nu)) ** 2
+
+
+def sub_band_count(work: float, limit: float | None = None) -> int:
+    """Fewest sub-bands ``K`` whose summed work ``work / K^2`` is at most ``limit`` (default
+    :data:`WORK_LIMIT`; 1 when ``work`` already is)."""
+    limit = WORK_LIMIT if limit is None else float(limit)
+    if not work > limit:
+        return 1
+    return int(np.ceil(np.sqrt(work / limit)))
+
+
+@dataclass(frozen=True)
+class SubBand:
+    """One sub-band of a split band.
+
+    Attributes
+    ----------
+    core_hz : (float, float)
+        Frequencies whose modes belong to this sub-band: ``lo <= f < hi`` (the last
+        sub-band's ``hi`` included).
+    analysed_hz : (float, float)
+        Lines the sub-band's identification uses: the core and one resonance beyond each cut.
+    n_peaks : int
+        Resonance peaks in the core.
+    """
+
+    core_hz: tuple[float, float]
+    analysed_hz: tuple[float, float]
+    n_peaks: int
+
+    def holds(self, frequency_hz: np.ndarray, last: bool) -> np.ndarray:
+        """Whether each frequency lies in the core (``last``: the upper edge included)."""
+        f = np.asarray(frequency_hz, dtype=float)
+        lo, hi = self.core_hz
+        return (f >= lo) & ((f <= hi) if last else (f < hi))
+
+
+def plan_sub_bands(frequency_hz: np.ndarray, H: np.ndarray, n_bands: int) -> list[SubBand]:
+    """Split a band into ``n_bands`` sub-bands with as many resonance peaks each.
+
+    Parameters
+    ----------
+    frequency_hz : ndarray, shape (N,)
+        Increasing lines of the band.
+    H : ndarray, shape (N, ny, nu)
+        The FRF over them (channels scaled alike, so that each counts in the mean
+        magnitude).
+    n_bands : int
+        Sub-bands wanted (:func:`sub_band_count`).
+
+    Returns
+    -------
+    list of SubBand
+        Fewer sub-bands when there are fewer peaks (:func:`automodal.core.order.peak_lines`)
+        than ``n_bands``, or when so many would leave a sub-band too few lines for its order
+        scan (:func:`automodal.core.order.lines_needed` of its first stage) or one that
+        analyses the whole band again; one over the whole band when no split is possible.
+    """
+    f = np.asarray(frequency_hz, dtype=float)
+    peaks = peak_lines(H)
+    span = (float(f[0]), float(f[-1]))
+    _, ny, nu = H.shape
+    logm = log_magnitude(mean_magnitude(H), 1e-12)
+    for k in range(min(int(n_bands), peaks.size), 1, -1):
+        bands = _split(f, logm, peaks, k)
+        if all(_lines(f, b.analysed_hz) >= lines_needed(_first_stage(b.n_peaks), ny, nu)
+               and b.analysed_hz != span for b in bands):
+            return bands
+    return [SubBand(span, span, int(peaks.size))]
+
+
+def _split(f: np.ndarray, logm: np.ndarray, peaks: np.ndarray, k: int) -> list[SubBand]:
+    """``k`` sub-bands of consecutive peak groups, cut at the valleys between groups."""
+    groups = np.array_split(np.arange(peaks.size), k)
+
+    def valley(i: int) -> int:
+        """The line of least magnitude between peak ``i`` and peak ``i + 1``."""
+        a, b = int(peaks[i]), int(peaks[i + 1])
+        return a + int(np.argmin(logm[a : b + 1]))
+
+    n = f.size
+    bands = []
+    for g in groups:
+        first, last = int(g[0]), int(g[-1])
+        lo = 0 if first == 0 else valley(first - 1)
+        hi = n - 1 if last == peaks.size - 1 else valley(last)
+        a_lo = 0 if first < 2 else valley(first - 2)
+        a_hi = n - 1 if last + 2 > peaks.size - 1 else valley(last + 1)
+        bands.append(SubBand((float(f[lo]), float(f[hi])), (float(f[a_lo]), float(f[a_hi])),
+                             int(g.size)))
+    return bands
+
+
+def _first_stage(n_peaks: int) -> int:
+    """The first stage of the order scan for ``n_peaks`` peaks (as
+    :func:`automodal.core.order.scan` sizes it)."""
+    return max(2 * n_peaks + 40, 60)
+
+
+def _lines(f: np.ndarray, band: tuple[float, float]) -> int:
+    """Lines of ``f`` within ``band`` (edges included)."""
+    return int(np.count_nonzero((f >= band[0]) & (f <= band[1])))

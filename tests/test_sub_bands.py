@@ -1,0 +1,112 @@
+"""Sub-bands: the plan (cuts at valleys, overlaps, counts) and a split run against a whole one."""
+
+from __future__ import annotations
+
+import cases
+import numpy as np
+import pytest
+
+from automodal.core import simulate as sim
+from automodal.core import sub_bands
+from automodal.core.order import peak_lines
+from automodal.pipeline import identify
+from automodal.settings import Settings
+
+
+def _siso_chain(n_dof: int = 12, noise: float = 0.0, seed: int = 0):
+    system = sim.damp(sim.chain(n_dof), zeta=0.005)
+    freq = sim.frequency_lines(1.1 * sim.natural_frequencies_hz(system).max(), 4000)
+    data, modes = sim.simulate_test(system, [n_dof - 1], [n_dof - 1], freq, "displacement",
+                                    noise=noise, seed=seed)
+    return data, modes
+
+
+def test_work_and_count():
+    assert sub_bands.replicate_work(1000, 1, 1, 10) == 1000 * (11 * 2) ** 2
+    assert sub_bands.sub_band_count(1e8, 2e8) == 1
+    assert sub_bands.sub_band_count(8e8, 2e8) == 2  # 8e8 / 2^2 = 2e8
+    assert sub_bands.sub_band_count(8.1e8, 2e8) == 3
+
+
+def test_plan_cuts_between_peaks_and_overlaps_by_one_resonance():
+    data, _ = _siso_chain()
+    f, H = data.frequency[1:], data.frf[1:]
+    peaks = f[peak_lines(H)]
+    plan = sub_bands.plan_sub_bands(f, H, 3)
+    assert len(plan) == 3
+    assert plan[0].core_hz[0] == f[0] and plan[-1].core_hz[1] == f[-1]
+    for a, b in zip(plan[:-1], plan[1:]):
+        assert a.core_hz[1] == b.core_hz[0]  # the cores tile the band
+        cut = a.core_hz[1]
+        assert not np.any(np.isclose(peaks, cut))  # no resonance is cut
+        # each analysed band reaches over the cut by exactly one peak
+        assert np.count_nonzero((peaks > cut) & (peaks <= a.analysed_hz[1])) == 1
+        assert np.count_nonzero((peaks < cut) & (peaks >= b.analysed_hz[0])) == 1
+    assert sum(b.n_peaks for b in plan) == peaks.size
+
+
+def test_plan_keeps_one_band_when_too_few_peaks_or_lines():
+    data, _ = _siso_chain(3)
+    f, H = data.frequency[1:], data.frf[1:]
+    assert len(sub_bands.plan_sub_bands(f, H, 1)) == 1
+    assert len(sub_bands.plan_sub_bands(f, H, 10)) <= 3  # no more sub-bands than peaks
+    few = slice(0, 40)  # 40 lines cannot hold a first scan stage of 60 states
+    assert len(sub_bands.plan_sub_bands(f[few], H[few], 4)) == 1
+
+
+def test_holds_splits_frequencies_once():
+    plan = [sub_bands.SubBand((1.0, 5.0), (1.0, 6.0), 2),
+            sub_bands.SubBand((5.0, 9.0), (4.0, 9.0), 2)]
+    f = np.array([1.0, 4.99, 5.0, 9.0])
+    assert plan[0].holds(f, False).tolist() == [True, True, False, False]
+    assert plan[1].holds(f, True).tolist() == [False, False, True, True]
+
+
+@pytest.fixture()
+def split_everything(monkeypatch):
+    """Make every band with a few peaks count as too costly."""
+    monkeypatch.setattr(sub_bands, "WORK_LIMIT", 1e4)
+
+
+def test_noise_free_split_run_finds_every_pole(split_everything):
+    data, modes = _siso_chain()
+    result = identify(data, Settings(seed=0, n_bootstrap=20))
+    assert "sub_bands" in result.orders and len(result.orders["sub_bands"]) >= 2
+    phys = sorted(m.frequency_hz for m in result.physical_modes)
+    assert len(phys) == modes.frequency_hz.size  # no mode lost or doubled at a cut
+    np.testing.assert_allclose(phys, np.sort(modes.frequency_hz), rtol=1e-5)
+    zeta = [m.damping_ratio for m in sorted(result.physical_modes, key=lambda m: m.frequency_hz)]
+    np.testing.assert_allclose(zeta, modes.damping_ratio[np.argsort(modes.frequency_hz)],
+                               rtol=1e-3)
+    # merged bookkeeping: distinct clusters, numbers 1..n, poles and fit over the band
+    assert len({m.cluster for m in result.modes}) == len(result.modes)
+    assert [m.mode_number for m in sorted(result.physical_modes, key=lambda m: m.frequency_hz)] \
+        == list(range(1, len(phys) + 1))
+    assert set(np.unique(result.poles.cluster)) <= {-1} | {m.cluster for m in result.modes}
+    f_fit = result.frf_fit[0]
+    assert np.all(np.diff(f_fit) > 0) and f_fit.size == result.n_lines
+    assert result.frf_fit_error.shape == (1, 1)
+    assert any("sub-bands" in w for w in result.warnings)
+
+
+def test_split_run_on_noisy_chain_matches_the_whole_run(split_everything):
+    case = cases.chain10_5pct()
+    split = identify(case.data, Settings(seed=0))
+    whole = identify(case.data, Settings(seed=0, sub_bands=False))
+    assert "sub_bands" in split.orders and "sub_bands" not in whole.orders
+    s_split, s_whole = cases.score(case, split.modes), cases.score(case, whole.modes)
+    assert s_split["recall"] >= s_whole["recall"] - 0.1, (s_split, s_whole)
+    assert s_split["median_rel_error"] < 1e-3
+
+
+def test_explicit_order_and_setting_keep_one_model(split_everything):
+    data, _ = _siso_chain(6)
+    assert "sub_bands" not in identify(data, Settings(seed=0, n_bootstrap=10,
+                                                      max_order=30)).orders
+    assert "sub_bands" not in identify(data, Settings(seed=0, n_bootstrap=10,
+                                                      sub_bands=False)).orders
+
+
+def test_setting_is_validated():
+    with pytest.raises(ValueError, match="sub_bands"):
+        Settings(sub_bands="yes")
