@@ -25,9 +25,10 @@ Examples:
               help="Output file: .uff or .unv (dataset 55), or .csv.")
 @click.option("--polar", is_flag=True,
               help="CSV: magnitude and phase (degrees) instead of real and imaginary parts.")
-@click.option("--geometry", metavar="CSV", type=click.Path(),
-              help="Nodes and channel directions (docs/cli.md, 'Geometry') for the"
-                   " shape channels, when the report lacks them.")
+@click.option("--geometry", metavar="FILE", type=click.Path(),
+              help="Nodes and channel directions (CSV, or UFF/UNV datasets 15/2411:"
+                   " docs/cli.md, 'Geometry') for the shape channels, when the report lacks"
+                   " them.")
 @click.option("-q", "--quiet", is_flag=True, help="Print nothing on success.")
 @debug_option
 def export(report_path: str, output: Path, polar: bool, geometry: str | None, quiet: bool,

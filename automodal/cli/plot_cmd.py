@@ -48,9 +48,9 @@ def _missing(report_path: str, arrays: ReportArrays) -> str | None:
               help="Figure file, .png, .svg or .pdf (default: <REPORT stem>.png beside REPORT);"
                    " a folder (existing, or a name without suffix) gets the standard set of"
                    " figures as PNG files.")
-@click.option("--geometry", metavar="CSV", type=click.Path(),
-              help="Node coordinates and channel nodes/directions (docs/cli.md, 'Geometry')"
-                   " for the mode-shape figure.")
+@click.option("--geometry", metavar="FILE", type=click.Path(),
+              help="Node coordinates and channel nodes/directions (CSV, or UFF/UNV datasets"
+                   " 15/2411: docs/cli.md, 'Geometry') for the mode-shape figure.")
 @click.option("--dpi", type=click.IntRange(20, 1200), default=150, show_default=True,
               help="Resolution of a PNG.")
 @debug_option
