@@ -93,6 +93,13 @@ def test_every_command_makes_missing_output_folders(tmp_path):
     assert converted.exit_code == 0 and (tmp_path / "c" / "d" / "x.h5").is_file()
     drawn = cli("plot", report, "-o", tmp_path / "e" / "f.png")
     assert drawn.exit_code == 0 and (tmp_path / "e" / "f.png").is_file()
+    figures = cli("plot", report, "-o", tmp_path / "e2" / "f2" / "figs")
+    assert figures.exit_code == 0, figures.output
+    assert (tmp_path / "e2" / "f2" / "figs" / "overview.png").is_file()
+    for name in ("shapes.uff", "shapes.csv"):
+        exported = cli("export", report, "-o", tmp_path / "l" / "m" / name, "-q")
+        assert exported.exit_code == 0, exported.output
+        assert (tmp_path / "l" / "m" / name).is_file()
     tracked = cli("track", report, "-o", tmp_path / "g" / "h.h5", "-q")
     assert tracked.exit_code == 0 and (tmp_path / "g" / "h.h5").is_file()
     simulated = cli("simulate", tmp_path / "i" / "s.h5", "--dof", "3")
@@ -105,7 +112,10 @@ def test_every_command_makes_missing_output_folders(tmp_path):
     ["identify", SAMPLE, "-o", "{blocker}/sub/r.json"],
     ["identify", SAMPLE.parent, "-o", "{blocker}/sub"],
     ["convert", SAMPLE, "{blocker}/x.h5"],
+    ["identify", SAMPLE, "--plot", "{blocker}/figs"],
     ["plot", "{report}", "-o", "{blocker}/f.png"],
+    ["plot", "{report}", "-o", "{blocker}/figs"],
+    ["export", "{report}", "-o", "{blocker}/shapes.uff"],
     ["track", "{report}", "-o", "{blocker}/h.h5"],
     ["simulate", "{blocker}/s.h5"],
 ])

@@ -246,6 +246,10 @@ def identify(
             raise InputError("--dask-scheduler is for batch runs (a folder or a glob as INPUT)")
         if not batch:
             _check_outputs(outputs)
+        if plot_dir:
+            from automodal.cli.plot_cmd import check_figure_folder
+
+            check_figure_folder(plot_dir)
         thresholds = thresholds_from(shift_sigmas, min_shift_percent, min_mac)
         if thresholds is not None and not baseline_path:
             raise InputError("--shift-sigmas, --min-shift-percent and --min-mac are "
