@@ -26,7 +26,20 @@ def cli(*args: object):
 # ------------------------------------------------------------------------------ imports
 
 HEAVY = ("automodal.app.batch", "automodal.app.monitoring", "scipy.stats", "scipy.ndimage",
-         "scipy.signal", "matplotlib", "dask", "joblib")
+         "scipy.signal", "scipy.optimize", "matplotlib", "dask", "joblib", "pyuff")
+
+
+def test_importing_the_command_line_loads_no_library():
+    """``import automodal.cli`` (every command's ``--help``) loads none of the libraries:
+    each command imports what it uses when it runs."""
+    heavy = ("numpy", "scipy", "h5py", "matplotlib", "dask", "pyuff", "joblib", "skfuzzy",
+             "threadpoolctl")
+    code = ("import sys, automodal.cli\n"
+            f"print(','.join(m for m in {heavy!r} if m in sys.modules))\n")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=60)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "", f"imported: {done.stdout.strip()}"
 
 
 def test_identify_of_one_file_imports_no_heavy_module():

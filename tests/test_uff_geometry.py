@@ -229,3 +229,24 @@ def test_geometry_uff_without_a_channel_node_is_one_line(hammer_uff, tmp_path):
     assert done.returncode == 2
     assert done.stderr.count("\n") == 1 and "node 10" in done.stderr
     assert not out.exists()
+
+
+def test_identify_of_a_uff_file_loads_no_hdf5_library(hammer_uff, tmp_path):
+    """h5py is for HDF5 inputs and reports: a UFF input with a JSON report does without
+    it (the reading runs in a forked child, whose imports do not count here)."""
+    report = tmp_path / "r.json"
+    code = (
+        "import sys\n"
+        "from automodal.cli import main\n"
+        "try:\n"
+        f"    main(['identify', {str(hammer_uff)!r}, '-o', {str(report)!r}, '--bootstrap',"
+        " '4', '--quiet'])\n"
+        "except SystemExit as exc:\n"
+        "    assert exc.code == 0, exc.code\n"
+        "print(','.join(m for m in ('h5py', 'matplotlib', 'dask') if m in sys.modules))\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=300)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "", f"imported: {done.stdout.strip()}"
+    assert report.is_file()
