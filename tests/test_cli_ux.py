@@ -26,7 +26,20 @@ def cli(*args: object):
 # ------------------------------------------------------------------------------ imports
 
 HEAVY = ("automodal.app.batch", "automodal.app.monitoring", "scipy.stats", "scipy.ndimage",
-         "scipy.signal", "matplotlib", "dask", "joblib")
+         "scipy.signal", "scipy.optimize", "matplotlib", "dask", "joblib", "pyuff")
+
+
+def test_importing_the_command_line_loads_no_library():
+    """``import automodal.cli`` (every command's ``--help``) loads none of the libraries:
+    each command imports what it uses when it runs."""
+    heavy = ("numpy", "scipy", "h5py", "matplotlib", "dask", "pyuff", "joblib", "skfuzzy",
+             "threadpoolctl")
+    code = ("import sys, automodal.cli\n"
+            f"print(','.join(m for m in {heavy!r} if m in sys.modules))\n")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=60)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "", f"imported: {done.stdout.strip()}"
 
 
 def test_identify_of_one_file_imports_no_heavy_module():
@@ -93,6 +106,13 @@ def test_every_command_makes_missing_output_folders(tmp_path):
     assert converted.exit_code == 0 and (tmp_path / "c" / "d" / "x.h5").is_file()
     drawn = cli("plot", report, "-o", tmp_path / "e" / "f.png")
     assert drawn.exit_code == 0 and (tmp_path / "e" / "f.png").is_file()
+    figures = cli("plot", report, "-o", tmp_path / "e2" / "f2" / "figs")
+    assert figures.exit_code == 0, figures.output
+    assert (tmp_path / "e2" / "f2" / "figs" / "overview.png").is_file()
+    for name in ("shapes.uff", "shapes.csv"):
+        exported = cli("export", report, "-o", tmp_path / "l" / "m" / name, "-q")
+        assert exported.exit_code == 0, exported.output
+        assert (tmp_path / "l" / "m" / name).is_file()
     tracked = cli("track", report, "-o", tmp_path / "g" / "h.h5", "-q")
     assert tracked.exit_code == 0 and (tmp_path / "g" / "h.h5").is_file()
     simulated = cli("simulate", tmp_path / "i" / "s.h5", "--dof", "3")
@@ -105,7 +125,10 @@ def test_every_command_makes_missing_output_folders(tmp_path):
     ["identify", SAMPLE, "-o", "{blocker}/sub/r.json"],
     ["identify", SAMPLE.parent, "-o", "{blocker}/sub"],
     ["convert", SAMPLE, "{blocker}/x.h5"],
+    ["identify", SAMPLE, "--plot", "{blocker}/figs"],
     ["plot", "{report}", "-o", "{blocker}/f.png"],
+    ["plot", "{report}", "-o", "{blocker}/figs"],
+    ["export", "{report}", "-o", "{blocker}/shapes.uff"],
     ["track", "{report}", "-o", "{blocker}/h.h5"],
     ["simulate", "{blocker}/s.h5"],
 ])

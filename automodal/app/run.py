@@ -125,6 +125,16 @@ def read_input(path: str | os.PathLike[str], options: TimeOptions | None = None)
     return as_frfdata(read_any(path, options))
 
 
+def _own_nodes(path: str | os.PathLike[str], data: FRFData) -> Geometry | None:
+    """The nodes of a UFF input that carries them (datasets 15/2411), else None."""
+    from automodal.io.geometry import UFF_SUFFIXES, read_geometry
+
+    if Path(path).suffix.lower() not in UFF_SUFFIXES or not data.attributes.get(
+            "geometry_source"):
+        return None
+    return read_geometry(path)
+
+
 def save(out: str | os.PathLike[str], report: Report, result: Result) -> Path:
     """Write one report file (atomically: whole or not at all), with the run's poles and
     FRF fit for an HDF5 report.
@@ -179,6 +189,8 @@ def run_file(
     geometry : Geometry, optional
         Where the shape channels are (``--geometry``): sets the report's
         ``input.mode_shape_nodes``, ``mode_shape_directions`` and ``mode_shape_xyz``.
+        Without it, a UFF input's own nodes (datasets 15/2411) place the shape channels
+        when they are inputs (reciprocity: the reader places only the outputs).
     options : TimeOptions, optional
         What the user says about a file of samples (:func:`time_options`).
 
@@ -198,6 +210,8 @@ def run_file(
     data = read_input(path, options)
     result = identify(data, settings, progress=progress)
     report = build_report(result, data, input_path=path, sha256=sha256)
+    if geometry is None and report.input.mode_shape_xyz is None:
+        geometry = _own_nodes(path, data)
     if geometry is not None:
         from automodal.io.geometry import apply_to_report
 

@@ -61,9 +61,10 @@ Examples:
 )
 @click.argument("input_path", metavar="INPUT", type=click.Path())
 @click.argument("output", metavar="OUTPUT.h5", type=click.Path(dir_okay=False, path_type=Path))
-@click.option("--geometry", metavar="CSV", type=click.Path(),
-              help="Node coordinates and channel nodes/directions (docs/cli.md, 'Geometry'):"
-                   " written as the outputs' nodes, directions and xyz.")
+@click.option("--geometry", metavar="FILE", type=click.Path(),
+              help="Node coordinates and channel nodes/directions (CSV, or UFF/UNV datasets"
+                   " 15/2411: docs/cli.md, 'Geometry'): written as the outputs' nodes,"
+                   " directions and xyz.")
 @test_date_option
 @click.option("-q", "--quiet", is_flag=True, help="Print nothing on success.")
 @time_input_options

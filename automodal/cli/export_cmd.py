@@ -6,8 +6,7 @@ from pathlib import Path
 
 import click
 
-from automodal.cli._common import debug_option, exit_on_error
-from automodal.errors import InputError
+from automodal.cli._common import check_output_folder, debug_option, exit_on_error
 
 
 @click.command(
@@ -25,9 +24,10 @@ Examples:
               help="Output file: .uff or .unv (dataset 55), or .csv.")
 @click.option("--polar", is_flag=True,
               help="CSV: magnitude and phase (degrees) instead of real and imaginary parts.")
-@click.option("--geometry", metavar="CSV", type=click.Path(),
-              help="Nodes and channel directions (docs/cli.md, 'Geometry') for the"
-                   " shape channels, when the report lacks them.")
+@click.option("--geometry", metavar="FILE", type=click.Path(),
+              help="Nodes and channel directions (CSV, or UFF/UNV datasets 15/2411:"
+                   " docs/cli.md, 'Geometry') for the shape channels, when the report lacks"
+                   " them.")
 @click.option("-q", "--quiet", is_flag=True, help="Print nothing on success.")
 @debug_option
 def export(report_path: str, output: Path, polar: bool, geometry: str | None, quiet: bool,
@@ -42,11 +42,10 @@ def export(report_path: str, output: Path, polar: bool, geometry: str | None, qu
     Prints one summary line unless --quiet.
     """
     with exit_on_error(debug):
-        if not output.parent.is_dir():
-            raise InputError("the folder to write into does not exist", output)
         from automodal.io.mode_export import export_modes, export_suffix
 
         export_suffix(output)  # refused before the report is read
+        check_output_folder(output, "export file")
         from automodal.io.report import load_report
 
         report = load_report(report_path)

@@ -156,9 +156,9 @@ def _run_batch(input_path: str, outputs: tuple[str, ...], settings: Settings,
               "Never changes the result.")
 @click.option("--plot", "plot_dir", type=click.Path(file_okay=False), default=None, metavar="DIR",
               help="Also write the standard figures (PNG) into DIR.")
-@click.option("--geometry", "geometry_path", type=click.Path(), default=None, metavar="CSV",
-              help="Node coordinates and channel nodes/directions (docs/cli.md, 'Geometry')"
-              " for the shape figures and automodal export.")
+@click.option("--geometry", "geometry_path", type=click.Path(), default=None, metavar="FILE",
+              help="Node coordinates and channel nodes/directions (CSV, or UFF/UNV datasets"
+              " 15/2411: docs/cli.md, 'Geometry') for the shape figures and automodal export.")
 @click.option("--baseline", "baseline_path", type=click.Path(), default=None, metavar="REPORT",
               help="Check the modes against a baseline report: exit 3 when a mode moved, "
               "changed shape or is missing (a 'monitoring' block goes into the report).")
@@ -246,6 +246,10 @@ def identify(
             raise InputError("--dask-scheduler is for batch runs (a folder or a glob as INPUT)")
         if not batch:
             _check_outputs(outputs)
+        if plot_dir:
+            from automodal.cli.plot_cmd import check_figure_folder
+
+            check_figure_folder(plot_dir)
         thresholds = thresholds_from(shift_sigmas, min_shift_percent, min_mac)
         if thresholds is not None and not baseline_path:
             raise InputError("--shift-sigmas, --min-shift-percent and --min-mac are "

@@ -30,6 +30,12 @@ def _check_output(out: Path) -> None:
     check_output_folder(out, "figure")
 
 
+def check_figure_folder(folder: str | Path) -> None:
+    """Refuse, before any work, a folder of figures that can be neither found nor made (it
+    is made when missing, with the folders above it)."""
+    check_output_folder(Path(folder) / "overview.png", "figure")
+
+
 def _missing(report_path: str, arrays: ReportArrays) -> str | None:
     """One line naming what the report lacks for a full figure, or None."""
     needs = ((arrays.poles, "bootstrap poles"), (arrays.frf, "FRFs"))
@@ -48,9 +54,9 @@ def _missing(report_path: str, arrays: ReportArrays) -> str | None:
               help="Figure file, .png, .svg or .pdf (default: <REPORT stem>.png beside REPORT);"
                    " a folder (existing, or a name without suffix) gets the standard set of"
                    " figures as PNG files.")
-@click.option("--geometry", metavar="CSV", type=click.Path(),
-              help="Node coordinates and channel nodes/directions (docs/cli.md, 'Geometry')"
-                   " for the mode-shape figure.")
+@click.option("--geometry", metavar="FILE", type=click.Path(),
+              help="Node coordinates and channel nodes/directions (CSV, or UFF/UNV datasets"
+                   " 15/2411: docs/cli.md, 'Geometry') for the mode-shape figure.")
 @click.option("--dpi", type=click.IntRange(20, 1200), default=150, show_default=True,
               help="Resolution of a PNG.")
 @debug_option
@@ -80,9 +86,9 @@ def plot(report_path: str, output: str | None, geometry: str | None, dpi: int,
     with exit_on_error(debug):
         out = Path(output) if output else default_output(report_path)
         folder = out.is_dir() or (output is not None and not out.suffix)
-        if folder and not out.parent.is_dir():
-            raise InputError("the folder's parent does not exist", str(out))
-        if not folder:
+        if folder:
+            check_figure_folder(out)
+        else:
             _check_output(out)
         from automodal.io.history import is_history_file
 

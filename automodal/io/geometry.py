@@ -1,4 +1,5 @@
-"""Test geometry from a small CSV file: node coordinates, and channels on nodes.
+"""Test geometry from a small CSV file (or a universal file's nodes): node coordinates, and
+channels on nodes.
 
 The file (``--geometry nodes.csv``) has one or two tables, each starting with its header
 row::
@@ -13,6 +14,9 @@ The first gives each node's coordinates; the second (optional) puts channels, na
 in the FRF file, on nodes and directions (``+X``, ``-Y``, ``+Z``, ``+RX``...), for files
 that do not say where their channels are. Blank lines and lines starting with ``#`` are
 skipped. Anything else is refused with a line that names the row.
+
+A ``.uff`` or ``.unv`` file gives the node table from its datasets 15 and 2411
+(:mod:`automodal.io.uff_geometry`); the channels' nodes then come from the FRF file.
 """
 
 from __future__ import annotations
@@ -21,6 +25,7 @@ import csv
 import os
 import re
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -32,6 +37,9 @@ if TYPE_CHECKING:
     from automodal.report_model import Report
 
 __all__ = ["Geometry", "apply_to_data", "apply_to_report", "read_geometry"]
+
+UFF_SUFFIXES = (".uff", ".unv")
+"""Suffixes of a geometry file read as a universal file (datasets 15 and 2411)."""
 
 _DIRECTION = re.compile(r"^[+-]?(X|Y|Z|RX|RY|RZ)$")
 _MAX_BYTES = 64 << 20
@@ -85,15 +93,20 @@ class Geometry:
 
 
 def read_geometry(path: str | os.PathLike[str]) -> Geometry:
-    """Read a geometry CSV file (see the module text).
+    """Read a geometry file: CSV (see the module text), or UFF/UNV nodes (by the suffix).
 
     Raises
     ------
     InputError
         If the file is missing or too large, has no node table, a row of the wrong
-        length, a non-numeric value, a node or channel twice, or an unknown direction.
+        length, a non-numeric value, a node or channel twice, or an unknown direction;
+        for a UFF file, what :func:`automodal.io.uff_geometry.read_uff_nodes` refuses.
     """
     source = os.fspath(path)
+    if Path(source).suffix.lower() in UFF_SUFFIXES:
+        from automodal.io.uff_geometry import read_uff_nodes
+
+        return Geometry(nodes=read_uff_nodes(path), source=source)
     try:
         if os.path.getsize(path) > _MAX_BYTES:
             raise InputError("the geometry file is larger than 64 MiB", source)

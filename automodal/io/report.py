@@ -24,7 +24,6 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-import h5py
 import numpy as np
 
 from automodal.errors import InputError
@@ -45,6 +44,8 @@ from automodal.report_model import (
 from automodal.result import IdentifiedMode, PoleTable, Result
 
 if TYPE_CHECKING:
+    import h5py
+
     from automodal.core.stabilization import StabilizationPoles
 
 __all__ = [
@@ -307,6 +308,8 @@ def _write_hdf5(
 ) -> None:
     """The report in the HDF5 layout of ``docs/report.md``, plus its JSON text in
     ``report_json``."""
+    import h5py
+
     content = report.to_dict()
     text = json.dumps(content, ensure_ascii=False, allow_nan=False)
     strings = h5py.string_dtype()
@@ -335,6 +338,8 @@ def _write_hdf5(
 
 def _write_attributes(group: h5py.Group, fields: dict[str, Any]) -> None:
     """Fields as HDF5 attributes: dicts as JSON text, ``None`` left out, null numbers NaN."""
+    import h5py
+
     for key, value in fields.items():
         if value is None:
             continue
@@ -483,6 +488,8 @@ def read_report_arrays(path: str | os.PathLike[str]) -> dict[str, dict[str, np.n
     with _reading(path) as p:
         if not _is_hdf5_report(p):
             return arrays
+        import h5py
+
         if not h5py.is_hdf5(p):
             raise _Refused("not an HDF5 file (or truncated)")
         with h5py.File(p, "r") as f:
@@ -523,6 +530,8 @@ def _is_hdf5_report(path: Path) -> bool:
         return True
     if suffix in _JSON_SUFFIXES:
         return False
+    import h5py
+
     return bool(h5py.is_hdf5(path))
 
 
@@ -538,6 +547,8 @@ def _read_json(path: Path) -> Any:
 
 def _read_hdf5(path: Path) -> Any:
     """The report dict kept in an HDF5 report's ``report_json`` attribute."""
+    import h5py  # only for HDF5 reports: a JSON run on a non-HDF5 input never loads it
+
     if not h5py.is_hdf5(path):
         raise _Refused("not an HDF5 file (or truncated)")
     with h5py.File(path, "r") as f:

@@ -6,7 +6,9 @@ reference DOF. :func:`read_uff` groups FRF sets by reference (input) and respons
 into one ``(n_freq, n_outputs, n_inputs)`` array, in the order in which the channels first
 appear in the file. A file whose every set is a time response (function type 1) holds time
 records instead: one channel per set, forces being the sets whose ordinate is an excitation
-force (specific data type 13). Data sets of other types (geometry, units, ...) are skipped.
+force (specific data type 13). Node coordinates (datasets 15 and 2411,
+:mod:`automodal.io.uff_geometry`) in a file of FRFs place its outputs; data sets of other
+types (units, ...) are skipped.
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ from automodal.frfdata import FRFData
 from automodal.io.channels import Channels, rate_from_time
 from automodal.io.limits import check_not_real_valued, check_text_size
 from automodal.io.refusal import describe, read_refusing
+from automodal.io.uff_geometry import Nodes, nodes_of_file, open_uff
 
 __all__ = ["FUNCTION_TYPES", "direction_name", "read_uff"]
 
@@ -96,6 +99,10 @@ def read_uff(path: str | os.PathLike[str]) -> FRFData | Channels:
     which a measurement cannot give) is dropped, and ``attributes["dropped_0hz_line"]`` says
     so. Any other non-finite value is refused.
 
+    When the file also holds node coordinates (datasets 15 or 2411, global cartesian), the
+    outputs get theirs (``output_xyz``) by node number; every response and reference node
+    must then be among them. ``attributes["geometry_source"]`` says so.
+
     Parameters
     ----------
     path : str or path-like
@@ -118,8 +125,10 @@ def read_uff(path: str | os.PathLike[str]) -> FRFData | Channels:
         holds no dataset 58, holds a function that is not an FRF (saying which type was
         found), real-valued data, sets over different frequency axes, a non-frequency
         abscissa, a ratio of motion to motion, sets that disagree on the response quantity,
-        an (output, input) pair given twice or missing, or non-finite values; or when it is
-        larger than :data:`automodal.io.limits.MAX_TEXT_BYTES` (not read).
+        an (output, input) pair given twice or missing, or non-finite values; node
+        coordinates that :func:`automodal.io.uff_geometry.nodes_of_file` refuses, or
+        that lack a response or reference node; or when it is larger than
+        :data:`automodal.io.limits.MAX_TEXT_BYTES` (not read).
     """
     return read_refusing(_read_uff, path)
 
@@ -127,7 +136,8 @@ def read_uff(path: str | os.PathLike[str]) -> FRFData | Channels:
 def _read_uff(p: Path, source: str) -> FRFData | Channels:
     """:func:`read_uff` (raises :class:`InputError` naming ``source`` on a bad file)."""
     check_text_size(p, source)
-    sets = _read_sets(p, source)
+    uff, types = open_uff(p, source)
+    sets = _read_sets(uff, types, source)
     if all(int(dset.get("func_type", -1)) == TIME_FUNCTION_TYPE for _, dset in sets):
         return _time_channels(sets, source)
     for number, dset in sets:
@@ -143,6 +153,9 @@ def _read_uff(p: Path, source: str) -> FRFData | Channels:
     if dropped:
         attributes["dropped_0hz_line"] = dropped
     output_names, input_names = _channel_names(outputs, inputs)
+    nodes = nodes_of_file(uff, types, source)
+    if nodes is not None:
+        attributes["geometry_source"] = "UFF datasets 15/2411 of the file"
     data = FRFData(
         frequency=frequency,
         frf=frf,
@@ -153,11 +166,26 @@ def _read_uff(p: Path, source: str) -> FRFData | Channels:
         input_nodes=np.array([c["node"] for c in inputs], dtype=np.int64),
         output_directions=[direction_name(c["dir"]) for c in outputs],
         input_directions=[direction_name(c["dir"]) for c in inputs],
+        output_xyz=None if nodes is None else _coordinates(nodes, outputs, inputs, source),
         attributes=attributes,
         source=source,
     )
     check_not_real_valued(data.frf, source)
     return data
+
+
+def _coordinates(nodes: Nodes, outputs: list[dict[str, Any]],
+                 inputs: list[dict[str, Any]], source: str) -> np.ndarray:
+    """The outputs' coordinates from the file's own nodes; every response and reference
+    node must be there."""
+    for side, channels in (("response", outputs), ("reference", inputs)):
+        for c in channels:
+            if c["node"] not in nodes:
+                raise InputError(
+                    f"{side} node {c['node']} ({_dof(c)}) is not among the file's "
+                    f"{len(nodes)} nodes of dataset 15/2411: add it there, or "
+                    "remove those datasets and give --geometry", source)
+    return np.array([nodes[c["node"]] for c in outputs], dtype=float)
 
 
 def direction_name(code: int) -> str:
@@ -187,15 +215,8 @@ def direction_name(code: int) -> str:
 # ----------------------------------------------------------------------------- reading
 
 
-def _read_sets(path: Path, source: str) -> list[tuple[int, dict[str, Any]]]:
+def _read_sets(uff: Any, types: list[int], source: str) -> list[tuple[int, dict[str, Any]]]:
     """All datasets 58 of the file as (1-based number of the set in the file, dict)."""
-    try:
-        import pyuff
-
-        uff = pyuff.UFF(os.fspath(path))
-        types = [int(t) for t in uff.get_set_types()]
-    except Exception as exc:  # noqa: BLE001 - pyuff raises bare Exception
-        raise InputError(f"cannot read as a UFF file: {describe(exc)}", source) from exc
     wanted = [i for i, t in enumerate(types) if t == 58]
     if not wanted:
         found = sorted({t for t in types if t > 0})
