@@ -66,20 +66,24 @@ def expected_modes(
 def design(
     band_hz: tuple[float, float],
     n_lines: int,
-    frequency_hz: np.ndarray,
-    damping_ratio: np.ndarray,
+    modes: Sequence[str],
+    modes_file: str | os.PathLike[str] | None = None,
     rule: str = "modal",
     frequency_uncertainty: float = 0.0,
-) -> LineDesign:
-    """:func:`~automodal.core.line_design.design_lines` with its refusals as
-    :class:`InputError`."""
+) -> tuple[LineDesign, int]:
+    """The lines for the modes of ``--mode`` values and a modes file (:func:`expected_modes`),
+    by :func:`~automodal.core.line_design.design_lines`, and how many of the given modes it
+    left out (outside the band).
+
+    Raises
+    ------
+    InputError
+        Everything :func:`expected_modes` and ``design_lines`` refuse.
+    """
+    f, z = expected_modes(modes, modes_file)
     try:
-        return design_lines(band_hz, n_lines, frequency_hz, damping_ratio, rule=rule,
+        made = design_lines(band_hz, n_lines, f, z, rule=rule,
                             frequency_uncertainty=frequency_uncertainty)
     except ValueError as exc:
         raise InputError(str(exc)) from None
-
-
-def out_of_band(design_: LineDesign, frequency_hz: np.ndarray) -> int:
-    """How many of the given expected modes the design left out (outside the band)."""
-    return int(np.asarray(frequency_hz).size - design_.mode_frequency_hz.size)
+    return made, int(f.size - made.mode_frequency_hz.size)

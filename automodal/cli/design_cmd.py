@@ -55,19 +55,16 @@ def design(band: tuple[float, float], n_lines: int, modes: tuple[str, ...],
     """
     with exit_on_error(debug):
         from automodal.app.design import design as make_design
-        from automodal.app.design import expected_modes, out_of_band
         from automodal.io.line_design_files import design_suffix, write_design
 
         for out in outputs:
             design_suffix(out)
             check_output_folder(out, "lines file")
-        f, z = expected_modes(modes, modes_file)
-        d = make_design(band, n_lines, f, z, rule, uncertainty / 100.0)
+        d, left = make_design(band, n_lines, modes, modes_file, rule, uncertainty / 100.0)
         for out in outputs:
             write_design(out, d, band)
         if quiet:
             return
-        left = out_of_band(d, f)
         if left:
             click.echo(f"automodal: note: {left} expected mode(s) outside the band left out",
                        err=True)
