@@ -173,6 +173,8 @@ def main() -> None:
     ap.add_argument("--rules", default="equidistant,dt-uniform,modal,d-optimal")
     ap.add_argument("--no-pipeline", action="store_true")
     ap.add_argument("--cases", default=None, help="indices of the cases to run (comma list)")
+    ap.add_argument("--lines", type=int, default=None,
+                    help="number of lines for every case (default: each case's own)")
     ap.add_argument("--out", default=None)
     args = ap.parse_args()
     seeds = seeds_of(args.seeds)
@@ -187,6 +189,9 @@ def main() -> None:
     all_cases = cases()
     if args.cases:
         all_cases = [all_cases[int(i)] for i in args.cases.split(",")]
+    if args.lines:
+        for case in all_cases:
+            case.n_lines = args.lines
     t0 = time.time()
     lines_out = [f"load average at start: {os.getloadavg()[0]:.2f}", ""]
     for case in all_cases:
