@@ -106,6 +106,7 @@ def test_modes_outside_the_band_are_left_out():
     ({"rule": "log"}, "unknown rule"),
     ({"modal_share": 1.0}, "modal share"),
     ({"frequency_uncertainty": -0.1}, "uncertainty"),
+    ({"rule": "d-optimal", "n_lines": 5000}, "at most"),
 ])
 def test_bad_design_inputs_are_refused(kwargs, message):
     args = {"band_hz": (5.0, 10.0), "n_lines": 50, "frequency_hz": [7.0],
