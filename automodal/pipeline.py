@@ -482,6 +482,15 @@ RESOLUTION_DECAY = float(np.log(100.0))
 record for its damping to be resolved: see :func:`resolution_warnings`."""
 
 
+def local_spacing(frequency: np.ndarray, at_hz: float) -> float:
+    """The line spacing (Hz) at ``at_hz``: the gap between the two lines around it (the
+    nearest gap at the band's ends). Equidistant lines give their one spacing; lines
+    designed for the modes (``automodal design``) are denser at the resonances than their
+    median spacing says."""
+    k = int(np.clip(np.searchsorted(frequency, at_hz), 1, frequency.size - 1))
+    return float(frequency[k] - frequency[k - 1])
+
+
 def resolution_warnings(
     modes: list[IdentifiedMode], frequency: np.ndarray, window_decay: float = 0.0
 ) -> list[str]:
@@ -493,16 +502,17 @@ def resolution_warnings(
     record cuts it off and the spectral estimate's leakage, not the structure, sets the
     width of the peak. In terms of the half-power bandwidth ``B = 2 zeta f = sigma / pi``
     the condition is ``B >= (ln 100 / pi) df = 1.47 df``: a peak narrower than about one
-    and a half lines.
+    and a half lines. ``df`` is the spacing at the mode (:func:`local_spacing`), so that
+    lines that are not equidistant are judged where the mode is.
     """
     f = np.asarray(frequency, dtype=float)
     if f.size < 2:
         return []
-    df = float(np.median(np.diff(f)))
     out = []
     for m in sorted((m for m in modes if m.physical), key=lambda m: m.frequency_hz):
         if not (np.isfinite(m.frequency_hz) and np.isfinite(m.damping_ratio)):
             continue
+        df = local_spacing(f, m.frequency_hz)
         sigma = m.damping_ratio * 2.0 * np.pi * m.frequency_hz + window_decay
         if sigma / df < RESOLUTION_DECAY:
             out.append(

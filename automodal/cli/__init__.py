@@ -18,6 +18,8 @@ from automodal import __version__
 _COMMANDS = {
     "convert": ("automodal.cli.convert_cmd", "convert",
                 "Convert UFF/UNV, CSV or NPZ FRFs to an FRF file."),
+    "design": ("automodal.cli.design_cmd", "design",
+               "Design the frequency lines to measure for the expected modes."),
     "export": ("automodal.cli.export_cmd", "export",
                "Write the physical mode shapes as UFF dataset 55 or CSV."),
     "identify": ("automodal.cli.identify_cmd", "identify", "Identify the modes in an FRF file."),

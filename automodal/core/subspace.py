@@ -366,8 +366,25 @@ def schur_complement(sums: GramSums, b: int | slice = 0) -> np.ndarray:
 
 def _schur(guu: np.ndarray, gyu: np.ndarray, gyy: np.ndarray) -> np.ndarray:
     """``gyy - gyu guu^-1 gyu^T`` through the Cholesky factor of ``guu`` (symmetrised);
-    stacked arrays (leading axes) are handled matrix by matrix."""
-    lu = np.linalg.cholesky(guu)
+    stacked arrays (leading axes) are handled matrix by matrix.
+
+    Where ``guu`` is not numerically positive definite (a bootstrap replicate whose lines
+    are bunched, e.g. designed lines crowded at the resonances: the monomial rows' Gram
+    matrix of the replicate loses rank) its pseudo-inverse on the eigenvalues above
+    ``1e-12`` times the largest is used instead, which is the projection onto the rows'
+    numerical span; the callers' resolution checks then send such replicates to the QR
+    path (measured: the pipeline failed with "Matrix is not positive definite" on a
+    10-DOF chain's greedy D-optimal lines, ``benchmarks/bench_design.py``).
+    """
+    try:
+        lu = np.linalg.cholesky(guu)
+    except np.linalg.LinAlgError:
+        e, V = np.linalg.eigh(guu)
+        keep = e > 1e-12 * np.max(e, axis=-1, keepdims=True)
+        scale = np.where(keep, 1.0 / np.sqrt(np.where(keep, e, 1.0)), 0.0)
+        w = (V * scale[..., None, :]).swapaxes(-1, -2) @ gyu.swapaxes(-1, -2)
+        out = gyy - w.swapaxes(-1, -2) @ w
+        return 0.5 * (out + out.swapaxes(-1, -2))
     if lu.ndim == 2:
         w = sla.solve_triangular(lu, gyu.T, lower=True, check_finite=False)
     else:  # no stacked triangular solve in numpy: LU of the triangular factor
