@@ -305,7 +305,9 @@ def _identify(
     """:func:`identify` with BLAS limited by the caller (``part``: one sub-band of a split
     band, whose modes' resolution warnings the merged result gives)."""
     t0 = time.perf_counter()
-    warnings: list[str] = []
+    analysis = data.attributes.get("time_analysis")
+    warnings: list[str] = [] if part or not isinstance(analysis, dict) else list(
+        analysis.get("warnings", []))  # the input stage's (hits dropped)
     p = prepare(data, s, warnings)
     choice = order.select_orders(p.z, p.Hs, p.line_weights, s.max_order, p.data.source,
                                  variance=p.variance)

@@ -297,6 +297,34 @@ def test_identify_impact_records(impact_test, truth):
         assert abs(z - z0) < 0.25 * z0, (f0, m.damping_ratio, z, z0)
 
 
+def test_double_hits_and_overloads_are_dropped_with_a_warning(impact_test):
+    ts, _ = impact_test
+    u, y = ts.inputs.copy(), ts.outputs.copy()
+    peak = np.max(np.abs(u[512 : 2 * 512]))
+    u[512 + 60 : 512 + 63, 0] = 0.4 * peak  # hit 2: the hammer bounced
+    y[4 * 512 + 100 : 4 * 512 + 104, 0] = np.max(np.abs(y)) * 1.5  # hit 5: response clipped
+    bad = TimeSeries(y, u, ts.sample_rate, attributes={"quantity": "displacement"})
+    keep, reasons = spectra.screen_hits(bad.inputs, bad.outputs, np.arange(6) * 512, 512)
+    assert keep.tolist() == [True, False, True, True, False, True]
+    assert "double hit" in reasons[0] and "hit 2" in reasons[0]
+    assert "overload" in reasons[1] and "response 1" in reasons[1]
+    # through the input stage (at 128 Hz a bounce is a hit of its own: the overload only)
+    clipped = TimeSeries(y, ts.inputs, ts.sample_rate, attributes={"quantity": "displacement"})
+    data, info = frfdata_from_time(clipped)
+    assert info["dropped_hits"] == 1 and data.records.shape[0] == 5
+    assert 4 * 512 + 20 not in info["hits"]
+    result = identify(clipped, Settings(n_bootstrap=10, jobs=1))
+    assert any("overload" in w for w in result.warnings)
+    # the clean test loses nothing
+    assert spectra.screen_hits(ts.inputs, ts.outputs, np.arange(6) * 512, 512)[0].all()
+    y_all = ts.outputs.copy()
+    for k in range(6):
+        y_all[512 * k + 100 : 512 * k + 104, 0] = np.max(np.abs(ts.outputs)) * 1.5
+    every = TimeSeries(y_all, ts.inputs, ts.sample_rate)
+    with pytest.raises(ValueError, match="every hammer hit is unusable"):
+        frfdata_from_time(every)
+
+
 def test_frfdata_from_time_choices_and_refusals(random_test):
     ts, _ = random_test
     short = TimeSeries(ts.outputs[:4096], ts.inputs[:4096], FS, attributes={"quantity": "velocity"})

@@ -266,6 +266,10 @@ def _impact(
     starts, length = hits
     if length < 32:
         raise ValueError(f"the records after the hits are too short ({length} samples)")
+    keep, dropped = spectra.screen_hits(ts.inputs, ts.outputs, starts, length)
+    if not keep.any():
+        raise ValueError(f"every hammer hit is unusable ({'; '.join(dropped)}): measure again")
+    starts = starts[keep]
     u, kept = spectra.force_window(ts.inputs, starts, length)
     force_limit = spectra.force_band_limit(u, starts, length, fs)
     decay = spectra.decay_needed(ts.outputs, starts, length, fs)
@@ -285,6 +289,8 @@ def _impact(
         force_window_samples=int(kept),
         exponential_decay_per_s=float(decay),
         force_limit_hz=force_limit,
+        dropped_hits=len(dropped),
+        warnings=dropped,
         force_drop_db=spectra.FORCE_DROP_DB,
         n_records=int(rec.shape[0]),
         segments_per_record=1,

@@ -33,6 +33,7 @@ __all__ = [
     "detect_hits",
     "exponential_decay",
     "force_band_limit",
+    "screen_hits",
     "h1_estimate",
     "half_spectra",
     "segment_count",
@@ -426,6 +427,75 @@ def detect_hits(
     ends = np.append(starts[1:], a.size)
     length = int(np.min(ends - starts))
     return starts.astype(np.int64), length
+
+
+SECOND_PULSE = 0.1
+"""A hit whose record holds a second force pulse of at least this share of its peak (a
+double hit: the hammer bounced) is dropped. Each pulse is a run of samples above 2 % of the
+peak, the level :func:`force_window` keeps; a bounce puts notches in the force spectrum,
+where H1 is poorly determined, and commercial analysers reject such hits for that reason."""
+
+CLIPPED_RUN = 3
+"""Consecutive samples at a channel's largest magnitude that mark an overload: an
+analogue-to-digital converter holds its full-scale code while the signal is beyond it,
+whereas a sampled peak reaches its largest value at one sample, or two."""
+
+
+def screen_hits(
+    inputs: np.ndarray, outputs: np.ndarray, starts: np.ndarray, length: int,
+    level: float = 0.02,
+) -> tuple[np.ndarray, list[str]]:
+    """Which hits to keep: double hits and overloaded records are dropped.
+
+    Parameters
+    ----------
+    inputs, outputs : ndarray, shape (n_samples, n_in) and (n_samples, n_out)
+        Forces and responses.
+    starts : ndarray of int
+        First sample of each hit's record.
+    length : int
+        Record length.
+    level : float
+        Relative force level that bounds a pulse (as :func:`force_window`'s).
+
+    Returns
+    -------
+    keep : ndarray of bool
+        One per hit.
+    reasons : list of str
+        One line per dropped hit (hits numbered from 1), for the warnings.
+    """
+    u, y = _channels(inputs, "inputs"), _channels(outputs, "outputs")
+    both = np.hstack([u, y])
+    full = np.max(np.abs(both), axis=0)
+    keep = np.ones(len(starts), dtype=bool)
+    reasons = []
+    for k, s0 in enumerate(np.asarray(starts, dtype=np.int64)):
+        seg = np.abs(u[s0 : s0 + length])
+        mag = np.max(seg / np.maximum(np.max(seg, axis=0), np.finfo(float).tiny), axis=1)
+        pulses = _runs(mag > level)
+        strong = [a for a, b in pulses if np.max(mag[a:b]) >= SECOND_PULSE]
+        if len(strong) > 1:
+            keep[k] = False
+            reasons.append(f"hit {k + 1} dropped: a second force pulse {strong[1] - strong[0]}"
+                           " samples after the first (a double hit)")
+            continue
+        at_full = np.abs(both[s0 : s0 + length]) >= full[None, :]
+        clipped = [j for j in range(both.shape[1])
+                   if any(b - a >= CLIPPED_RUN for a, b in _runs(at_full[:, j]))]
+        if clipped:
+            keep[k] = False
+            j = clipped[0]
+            name = f"force {j + 1}" if j < u.shape[1] else f"response {j - u.shape[1] + 1}"
+            reasons.append(f"hit {k + 1} dropped: channel {name} held its largest value for"
+                           f" {CLIPPED_RUN} or more samples (an overload)")
+    return keep, reasons
+
+
+def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """``(start, stop)`` of each run of ``True`` in a 1-D mask."""
+    edges = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
+    return list(zip(np.flatnonzero(edges == 1).tolist(), np.flatnonzero(edges == -1).tolist()))
 
 
 def force_window(
