@@ -288,8 +288,8 @@ def _identify_sub_bands(
     warnings.append(
         f"[{plan[0].analysed_hz[0]:g}, {plan[-1].analysed_hz[1]:g}] Hz was identified in"
         f" {len(plan)} sub-bands, cut at valleys between resonance"
-        f" peaks (one model of it would have had {order_of_whole} states; sub_bands=False"
-        " or --order keeps one model)")
+        f" peaks (one model of it would have had {order_of_whole} states; --one-band"
+        " (sub_bands=False) or --order keeps one model)")
     merged = merge_sub_bands(results, plan, s.to_dict(), warnings, 0.0)
     if not part:
         lines = merged.frf_fit[0] if merged.frf_fit is not None else data.frequency

@@ -150,6 +150,10 @@ def _run_batch(input_path: str, outputs: tuple[str, ...], settings: Settings,
               help="Largest model order considered, in states: two per mode, so --order 12 "
               "finds at most 6 modes (default: automatic; a warning says when the order "
               "stopped the model short of the data).")
+@click.option("--one-band", is_flag=True,
+              help="Identify the band with one model even when it is costly (by default a "
+              "band whose one model would be slow is split into sub-bands at the valleys "
+              "between resonances, docs/method.md 2.1).")
 @click.option("--jobs", type=click.IntRange(min=1), default=None,
               help="Cores to use (>= 1): threads for one file's bootstrap, processes across the "
               "files of a batch. Default: automatic (all cores when the work pays for them). "
@@ -195,6 +199,7 @@ def identify(
     forces: str | None,
     quantity: str | None,
     debug: bool,
+    one_band: bool = False,
 ) -> None:
     """Identify the modes in INPUT (an automodal FRF file) with no human choice.
 
@@ -232,6 +237,7 @@ def identify(
             seed=seed,
             max_order=max_order,
             jobs=jobs,
+            sub_bands=not one_band,
         )
         from automodal.app.run import time_options
 
