@@ -284,11 +284,12 @@ def input_stage(data: FRFData | TimeSeries, settings: Settings | None = None) ->
     FRFs pass unchanged; time series with measured forces go through
     :func:`~automodal.core.from_time.as_frfdata` (H1). Output-only time series are analysed
     twice: a first identification of half spectra (the records as they are, max lag
-    ``T / 32``, at most :data:`FIRST_PASS_MAX_LAG`, :data:`FIRST_PASS_REPLICATES`
+    ``T / MIN_BLOCKS``, at most :data:`FIRST_PASS_MAX_LAG`, :data:`FIRST_PASS_REPLICATES`
     replicates) gives the physical modes, from which
     :func:`~automodal.core.ambient_plan.plan_operational` chooses the decimation (band to
     1.25 times the highest mode, or the band asked for) and the max lag (10 decay times of
-    the slowest mode, at most ``T / 32``); the half spectra are made again with them. Why,
+    the slowest mode, at most ``T / MIN_BLOCKS``, :data:`~automodal.core.ambient_plan.
+    MIN_BLOCKS` = 48); the half spectra are made again with them. Why,
     with the measurements: :mod:`automodal.core.ambient_plan`. The plan and the first
     pass's modes go in ``attributes["time_analysis"]["plan"]``. Without a physical mode in
     the first pass, its half spectra are kept (and the plan says so).
@@ -319,7 +320,7 @@ def input_stage(data: FRFData | TimeSeries, settings: Settings | None = None) ->
     except ValueError:
         first.attributes["time_analysis"]["plan"] = {
             "first_pass_modes_hz": [], "note": "no physical mode in a first pass: its"
-            " half spectra (default choices) are analysed"}
+            " half spectra are analysed"}
         return first
     out = as_frfdata(data, nperseg=plan.nperseg, decimation=plan.decimation)
     out.attributes["time_analysis"]["plan"] = {

@@ -25,15 +25,26 @@ modes; from them:
   resolution, not a bias: the error of an estimated correlation does not decay with the
   lag while the structure's correlation does, so lags beyond a few decay times of the
   slowest mode add only noise (:data:`LAG_DECAYS` = 10), and each lag must be averaged over
-  enough independent stretches of the record, ``T / M >= MIN_BLOCKS`` (32).
+  enough independent stretches of the record, ``T / M >= MIN_BLOCKS`` (48). A record
+  shorter than about 500 decay times of its slowest mode (Weimar setup 1: 4.6 of mode 1)
+  is bound by ``T / MIN_BLOCKS``; a longer one by the decays.
 
 Calibration (simulated ambient tests of ``automodal simulate``, the chain3, chain4,
 chain6, grid3x2 and chain5np systems of ``tests/test_simulate_time.py``, seeds 1 and 2
-only; the tests judge other seeds): at 2000 decay times lags of 5-20 decay times gave
-every mode with damping errors of 1-5 %, the former default (16384 samples, 40-140 decay
-times) two spurious extra modes on one system, lags under 2 decay times lost modes on two;
-at 60 and 150 decay times ``T / M`` from 16 to 48 gave the same results (88-91 of 96 modes'
-damping within 20 %), 64 fewer (86).
+only; the tests judge other seeds):
+
+* at 2000 decay times, lags of 5-20 decay times gave every mode with damping errors of
+  1-5 %; the former default (16384 samples, 40-140 decay times) gave two spurious extra
+  modes on one system, lags under 2 decay times lost modes on two;
+* at 60 and 150 decay times, ``T / M`` of 16, 24, 32 and 48 gave about the same (91, 87,
+  91 and 86 of 96 modes' damping within 20 %: the sampling error of one short record, the
+  errors scattering both ways), 64 a little worse (86, of which 42 of 48 at 150 decay
+  times against 46-47 for the others);
+* Weimar setup 1 (decimated by 5) was flat for ``T / M`` from 32 to 60 in damping (10 of
+  11 modes within 30 % of the reference), but at 32 a spurious physical companion of mode 1
+  appeared (1.233 Hz beside 1.229 Hz, in each of three seeds) and not at 40-60. Of the
+  values the simulations could not tell apart, 48 was taken for that reason: the only
+  constant of the rule chosen with the real data in view.
 """
 
 from __future__ import annotations
@@ -49,6 +60,7 @@ __all__ = [
     "LAG_DECAYS",
     "MIN_BLOCKS",
     "MIN_LAG",
+    "MAX_STAGE",
     "OperationalPlan",
     "decimation_factor",
     "decimation_stages",
@@ -68,7 +80,10 @@ MIN_BLOCKS = 48
 MIN_LAG = 64
 """Fewest lags (samples): 32 lines up to the Nyquist frequency."""
 
-_STAGE_PRIMES = (2, 3, 5, 7)  # a decimation runs in stages of these factors
+MAX_STAGE = 12
+"""Largest decimation of one stage (scipy.signal.decimate advises below 13)."""
+
+_STAGE_PRIMES = (2, 3, 5, 7)  # a larger decimation runs in stages made of these
 
 
 @dataclass(frozen=True)
@@ -114,28 +129,48 @@ def decimation_factor(sample_rate: float, top_hz: float, usable_fraction: float)
     Returns
     -------
     int
-        ``q >= 1`` with ``usable_fraction * sample_rate / (2 q) >= top_hz``, the largest such
-        whose prime factors are at most 7 (it runs in stages of at most 7; a prime above
-        that is stepped down to the next such number).
+        ``q >= 1`` with ``usable_fraction * sample_rate / (2 q) >= top_hz``, the largest such;
+        above :data:`MAX_STAGE` it runs in stages (:func:`decimation_stages`) and is stepped
+        down to a number whose prime factors are at most 7.
     """
     if not (sample_rate > 0 and top_hz > 0 and 0 < usable_fraction <= 1):
         raise ValueError("sample_rate, top_hz and usable_fraction must be positive")
     q = max(1, int(math.floor(usable_fraction * sample_rate / (2.0 * top_hz) + 1e-9)))
-    while q > 1 and not _smooth(q):
+    while q > MAX_STAGE and not _smooth(q):
         q -= 1
     return q
 
 
 def decimation_stages(q: int) -> list[int]:
-    """``q`` as a product of stage factors (each at most 7), largest first."""
-    stages, rest = [], int(q)
-    for p in reversed(_STAGE_PRIMES):
-        while rest % p == 0:
-            stages.append(p)
-            rest //= p
-    if rest != 1:
+    """``q`` as a product of stage factors of at most :data:`MAX_STAGE` (12), fewest stages
+    (each stage's filter adds its own ripple), largest first.
+
+    Raises
+    ------
+    ValueError
+        If ``q`` above 12 has a prime factor above 7.
+    """
+    q = int(q)
+    if q < 1:
+        raise ValueError(f"decimation must be >= 1, got {q}")
+    if q <= MAX_STAGE:
+        return [] if q == 1 else [q]
+    if not _smooth(q):
         raise ValueError(f"decimation {q} has a prime factor above 7")
-    return stages
+    primes = []
+    for p in _STAGE_PRIMES:
+        while q % p == 0:
+            primes.append(p)
+            q //= p
+    stages: list[int] = []
+    for p in sorted(primes, reverse=True):  # first fit of the factors into stages
+        for i, st in enumerate(stages):
+            if st * p <= MAX_STAGE:
+                stages[i] = st * p
+                break
+        else:
+            stages.append(p)
+    return sorted(stages, reverse=True)
 
 
 def _smooth(q: int) -> bool:

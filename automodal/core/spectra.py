@@ -552,11 +552,12 @@ def undo_exponential_window(
 def decimate(x: np.ndarray, q: int) -> np.ndarray:
     """Low-pass filter and keep every ``q``-th sample of each channel.
 
-    In stages of at most 7 (:func:`automodal.core.ambient_plan.decimation_stages`), each an
+    In one stage up to 12, else in the fewest stages of at most 12
+    (:func:`automodal.core.ambient_plan.decimation_stages`), each an
     order-8 Chebyshev type I low-pass at 0.8 of the stage's new Nyquist frequency, run
     forwards and backwards (:func:`scipy.signal.decimate` with ``zero_phase``): no phase
-    shift, and a gain flat to 0.05 dB below 0.8 of the new Nyquist frequency, which covers
-    the band the input stage keeps (``fs / 2.56`` is 0.78 of it).
+    shift, and a gain flat to 0.1 dB per stage (two passes of 0.05 dB ripple) below 0.8 of the new
+    Nyquist frequency, which covers the band the input stage keeps (``fs / 2.56`` is 0.78 of it).
 
     Parameters
     ----------
