@@ -62,6 +62,9 @@ def test_plan_from_modes():
     asked = ap.plan_operational(61440, 256.0, f, z, USABLE_FRACTION, band_top_hz=30.0)
     assert asked.decimation == ap.decimation_factor(256.0, 30.0, USABLE_FRACTION) == 3
     assert asked.to_dict()["decimation"] == 3
+    # a short record is decimated less: 48 stretches of 64 lags remain
+    short = ap.plan_operational(4 * 3072, 256.0, f[:3], z[:3], USABLE_FRACTION)
+    assert short.decimation == 4 and short.nperseg == ap.MIN_LAG
     with pytest.raises(ValueError, match="no mode"):
         ap.plan_operational(61440, 256.0, np.array([]), np.array([]), USABLE_FRACTION)
 

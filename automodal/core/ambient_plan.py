@@ -241,6 +241,9 @@ def plan_operational(
     Returns
     -------
     OperationalPlan
+        The decimation is :func:`decimation_factor`'s, but at most ``n_samples //
+        (MIN_BLOCKS * MIN_LAG)`` (a record too short for it is decimated less, so that
+        ``MIN_BLOCKS`` stretches of ``MIN_LAG`` lags remain).
     """
     f = np.asarray(frequency_hz, dtype=float).ravel()
     z = np.asarray(damping_ratio, dtype=float).ravel()
@@ -252,6 +255,10 @@ def plan_operational(
     f, z = f[ok], z[ok]
     top = float(band_top_hz) if band_top_hz is not None else BAND_MARGIN * float(f.max())
     q = decimation_factor(sample_rate, top, usable_fraction)
+    # a short record keeps MIN_BLOCKS stretches of MIN_LAG samples after decimation
+    q = min(q, max(1, n_samples // (MIN_BLOCKS * MIN_LAG)))
+    while q > MAX_STAGE and not _smooth(q):
+        q -= 1
     sigma = z * 2.0 * np.pi * f
     sigma = sigma[sigma > 0]
     slowest = float(sigma.min()) if sigma.size else float("nan")
