@@ -47,6 +47,8 @@ def test_lag_length_is_the_shorter_of_the_decay_and_the_record_bounds():
     # never under MIN_LAG lags, never half the record or more
     assert ap.lag_length(2000, fs, 50.0) == ap.MIN_LAG
     assert ap.lag_length(100, fs, None) == 50
+    # nor more than the line budget (a lightly damped mode in a long record)
+    assert ap.lag_length(10**7, fs, 0.01) == ap.MAX_LAG
 
 
 def test_plan_from_modes():

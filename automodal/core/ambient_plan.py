@@ -25,7 +25,8 @@ modes; from them:
   resolution, not a bias: the error of an estimated correlation does not decay with the
   lag while the structure's correlation does, so lags beyond a few decay times of the
   slowest mode add only noise (:data:`LAG_DECAYS` = 10), and each lag must be averaged over
-  enough independent stretches of the record, ``T / M >= MIN_BLOCKS`` (48). A record
+  enough independent stretches of the record, ``T / M >= MIN_BLOCKS`` (48); at most
+  :data:`MAX_LAG` (16384) lags, the line budget of the Welch segments. A record
   shorter than about 500 decay times of its slowest mode (Weimar setup 1: 4.6 of mode 1)
   is bound by ``T / MIN_BLOCKS``; a longer one by the decays.
 
@@ -60,6 +61,7 @@ __all__ = [
     "LAG_DECAYS",
     "MIN_BLOCKS",
     "MIN_LAG",
+    "MAX_LAG",
     "MAX_STAGE",
     "OperationalPlan",
     "decimation_factor",
@@ -79,6 +81,10 @@ MIN_BLOCKS = 48
 
 MIN_LAG = 64
 """Fewest lags (samples): 32 lines up to the Nyquist frequency."""
+
+MAX_LAG = 16384
+"""Most lags (samples): the line budget of :func:`automodal.core.spectra.choose_segment`
+(8193 lines; the identification's cost grows with the lines)."""
 
 MAX_STAGE = 12
 """Largest decimation of one stage (scipy.signal.decimate advises below 13)."""
@@ -188,6 +194,7 @@ def lag_length(
     decays: float = LAG_DECAYS,
     min_blocks: int = MIN_BLOCKS,
     min_lag: int = MIN_LAG,
+    max_lag: int = MAX_LAG,
 ) -> int:
     """Max lag ``M`` (samples) of the half spectra: ``min(decays / sigma, T / min_blocks)``.
 
@@ -200,20 +207,20 @@ def lag_length(
     slowest_decay : float or None
         ``min zeta omega`` of the modes (1/s); ``None`` or not positive: the record's
         bound alone.
-    decays, min_blocks, min_lag : see :data:`LAG_DECAYS`, :data:`MIN_BLOCKS`,
-        :data:`MIN_LAG`.
+    decays, min_blocks, min_lag, max_lag : see :data:`LAG_DECAYS`, :data:`MIN_BLOCKS`,
+        :data:`MIN_LAG`, :data:`MAX_LAG`.
 
     Returns
     -------
     int
-        ``M``, at least ``min_lag`` and below half the record.
+        ``M``, in ``[min_lag, max_lag]`` and below half the record.
     """
     if n_samples < 4:
         raise ValueError(f"the record ({n_samples} samples) is too short")
     m = n_samples / float(min_blocks)
     if slowest_decay is not None and np.isfinite(slowest_decay) and slowest_decay > 0:
         m = min(m, decays * sample_rate / slowest_decay)
-    return int(min(max(int(round(m)), min_lag), n_samples // 2))
+    return int(min(max(int(round(m)), min_lag), max_lag, n_samples // 2))
 
 
 def plan_operational(
