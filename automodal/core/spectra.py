@@ -708,7 +708,7 @@ def choose_references(
     max_refs: int = 3,
     nperseg: int | None = None,
     min_gain: float = 0.1,
-    min_cover: float = 0.25,
+    min_cover: float = 0.1,
     max_channels: int = 64,
 ) -> list[int]:
     """Automatic reference channels for output-only analysis.
@@ -730,12 +730,17 @@ def choose_references(
        the best visibility among the references taken. A channel collinear with a taken
        one adds no coverage, so it is never taken. It stops at ``max_refs`` (3), or when
        the gain is below ``min_gain`` (0.1) per peak *and* every peak is seen: ``c(p) >=
-       min_cover * max_i v_i(p)`` (``min_cover`` 0.25, a quarter of the best channel's
-       share). The second condition matters when a reference sits on a node of a mode or
-       two: the coverage it lacks there is small beside the peaks it sees (on a 3 x 2 grid
-       with all six channels, the first reference saw four of six peaks with share 0.17
-       to 0.34 and the other two with 0; the next channel's gain was 0.5, under the 0.6 of
-       ``min_gain``, and the two modes were missing from every seed's half spectra).
+       min_cover * max_i v_i(p)`` (``min_cover`` 0.1: a tenth of the best channel's
+       share, a third of its amplitude). The second condition matters when a reference
+       sits on a node of a mode or two: the coverage it lacks there is small beside the
+       peaks it sees (on a 3 x 2 grid with all six channels, the first reference saw four
+       of six peaks with share 0.17 to 0.34 and the other two with 0; the next channel's
+       gain was 0.5, under the 0.6 of ``min_gain``, and the two modes were missing from
+       every seed's half spectra). Why not more: a second reference that adds little is
+       not free. With ``min_cover`` 0.25 the 5-DOF chains of ``benchmarks/bench_oma.py``
+       took a second reference beside the free end; the lightly damped one (0.2 %) then
+       gave three spurious physical companions and took 12 times as long (1.0 s against
+       12.6 s), with the free end alone none.
 
     Without any peak (no structure visible) the one reference is the channel with the
     largest entry in the dominant eigenvector of the line-averaged ``|S(f)|`` (the channel
