@@ -67,6 +67,9 @@ def test_plan_from_modes():
     # a short record is decimated less: 48 stretches of 64 lags remain
     short = ap.plan_operational(4 * 3072, 256.0, f[:3], z[:3], USABLE_FRACTION)
     assert short.decimation == 4 and short.nperseg == ap.MIN_LAG
+    undamped = ap.plan_operational(61440, 256.0, f[3:], z[3:], USABLE_FRACTION)
+    assert undamped.to_dict()["slowest_decay_per_s"] is None
+    assert undamped.nperseg == ap.lag_length(61440 // undamped.decimation, 1.0, None)
     with pytest.raises(ValueError, match="no mode"):
         ap.plan_operational(61440, 256.0, np.array([]), np.array([]), USABLE_FRACTION)
 

@@ -106,7 +106,8 @@ class OperationalPlan:
         The band's top the decimation keeps (``BAND_MARGIN`` times the highest mode, or
         the band asked for).
     slowest_decay_per_s : float
-        ``min zeta omega`` of the first pass's physical modes (1/s).
+        ``min zeta omega`` of the first pass's physical modes (1/s); NaN when none has a
+        positive damping (the record alone then bounds the lags).
     """
 
     decimation: int
@@ -115,9 +116,9 @@ class OperationalPlan:
     slowest_decay_per_s: float
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-friendly fields."""
-        return {k: (float(v) if isinstance(v, float) else int(v)) for k, v in
-                asdict(self).items()}
+        """JSON-friendly fields (a decay that is not known, NaN, as ``None``)."""
+        return {k: (int(v) if isinstance(v, int) else float(v) if math.isfinite(v) else None)
+                for k, v in asdict(self).items()}
 
 
 def decimation_factor(sample_rate: float, top_hz: float, usable_fraction: float) -> int:
