@@ -69,6 +69,7 @@ __all__ = [
     "Result",
     "Settings",
     "identify",
+    "input_stage",
     "prepare",
     "select_band",
 ]
@@ -260,13 +261,74 @@ def identify(
     """
     from threadpoolctl import threadpool_limits
 
-    data = as_frfdata(data)  # input stage: time series become FRFs here
     s = settings or Settings()
     # One BLAS thread for the many small dense problems (measured: 0.75 s against 0.9 s
     # end to end on a 6-DOF chain, and far steadier on a busy machine); the replicates
     # share the cores through worker threads (automodal.core.parallel).
     with threadpool_limits(1):
+        data = input_stage(data, s)  # time series become FRFs here
         return _identify(data, s, progress)
+
+
+FIRST_PASS_MAX_LAG = 1024
+"""Most lags of the output-only first pass: 513 lines, the resolution floor of
+:func:`~automodal.core.spectra.choose_segment`; the first pass has only to find the modes,
+and fewer lines make it quicker."""
+
+FIRST_PASS_REPLICATES = 20
+"""Bootstrap replicates of the output-only first pass (it only has to tell the physical
+modes apart; their values are not reported)."""
+
+
+def input_stage(data: FRFData | TimeSeries, settings: Settings | None = None) -> FRFData:
+    """The test as the FRFs the identification analyses.
+
+    FRFs pass unchanged; time series with measured forces go through
+    :func:`~automodal.core.from_time.as_frfdata` (H1). Output-only time series are analysed
+    twice: a first identification of half spectra (the records as they are, max lag
+    ``T / MIN_BLOCKS``, at most :data:`FIRST_PASS_MAX_LAG`, :data:`FIRST_PASS_REPLICATES`
+    replicates) gives the physical modes, from which
+    :func:`~automodal.core.ambient_plan.plan_operational` chooses the decimation (band to
+    1.25 times the highest mode, or the band asked for) and the max lag (10 decay times of
+    the slowest mode, at most ``T / MIN_BLOCKS``, :data:`~automodal.core.ambient_plan.
+    MIN_BLOCKS` = 48); the half spectra are made again with them. Why,
+    with the measurements: :mod:`automodal.core.ambient_plan`. The plan and the first
+    pass's modes go in ``attributes["time_analysis"]["plan"]``. Without a physical mode in
+    the first pass, its half spectra are kept (and the plan says so).
+    """
+    from automodal.timedata import TimeSeries
+
+    if not isinstance(data, TimeSeries) or data.inputs is not None:
+        return as_frfdata(data)
+    from threadpoolctl import threadpool_limits
+
+    from automodal.core import ambient_plan
+    from automodal.core.from_time import USABLE_FRACTION
+
+    s = settings or Settings()
+    m0 = min(FIRST_PASS_MAX_LAG,
+             ambient_plan.lag_length(data.n_samples, data.sample_rate, None))
+    first = as_frfdata(data, nperseg=m0)
+    with threadpool_limits(1):
+        first_result = _identify(first, replace(s, n_bootstrap=min(
+            s.n_bootstrap, FIRST_PASS_REPLICATES)), None)
+    phys = [m for m in first_result.modes if m.physical and np.isfinite(m.frequency_hz)]
+    f = np.array([m.frequency_hz for m in phys], dtype=float)
+    z = np.array([m.damping_ratio for m in phys], dtype=float)
+    top = None if s.band_hz is None else float(s.band_hz[1])
+    try:
+        plan = ambient_plan.plan_operational(data.n_samples, data.sample_rate, f, z,
+                                             USABLE_FRACTION, top)
+    except ValueError:
+        first.attributes["time_analysis"]["plan"] = {
+            "first_pass_modes_hz": [], "note": "no physical mode in a first pass: its"
+            " half spectra are analysed"}
+        return first
+    out = as_frfdata(data, nperseg=plan.nperseg, decimation=plan.decimation)
+    out.attributes["time_analysis"]["plan"] = {
+        **plan.to_dict(), "first_pass_modes_hz": [float(x) for x in f],
+        "first_pass_damping": [float(x) for x in z], "first_pass_nperseg": int(m0)}
+    return out
 
 
 def _identify_sub_bands(

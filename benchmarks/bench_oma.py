@@ -29,8 +29,10 @@ Datasets
 Tools
 -----
 * automodal (this worktree): ``TimeSeries(outputs=y, inputs=None, sample_rate=fs)``,
-  ``automodal.core.from_time.as_frfdata``, ``automodal.identify(data, Settings(seed=0))``;
-  every physical mode counts.
+  ``automodal.identify(series, Settings(seed=0))``, whose input stage
+  (``automodal.pipeline.input_stage``) runs the output-only first pass and the plan
+  (decimation, max lag; timed with the rest); every physical mode counts. The plan is
+  listed per dataset.
 * pyOMA2 (``pip install pyOMA-2``; ``pip install -e '.[bench]'``): ``SingleSetup(y, fs)``,
   ``decimate_data(q)`` when the data allow it, ``SSI(method="cov", br, ordmax=100, step=2)``
   as in pyOMA2's clustering example, then each automatic clustering preset
@@ -78,7 +80,7 @@ sys.path.insert(0, str(ROOT))
 
 import automodal  # noqa: E402
 from automodal.core import simulate  # noqa: E402
-from automodal.core.from_time import as_frfdata  # noqa: E402
+from automodal.pipeline import input_stage  # noqa: E402
 from automodal.timedata import TimeSeries  # noqa: E402
 
 PRESETS = ("Reynders", "Neu", "Kvaale", "Dederichs", "Magalhaes")
@@ -201,12 +203,19 @@ def run_automodal(ds: Dataset) -> Run:
     ts = TimeSeries(outputs=ds.y, inputs=None, sample_rate=ds.fs,
                     output_names=[f"ch{i}" for i in range(ds.y.shape[1])],
                     attributes={"quantity": ds.quantity})
+    settings = automodal.Settings(seed=0)
     t0 = time.perf_counter()
-    result = automodal.identify(as_frfdata(ts), automodal.Settings(seed=0))
+    data = input_stage(ts, settings)  # what automodal.identify(ts, settings) does first
+    result = automodal.identify(data, settings)
     seconds = time.perf_counter() - t0
     modes = result.physical_modes
+    info = data.attributes["time_analysis"]
+    plan = (f"decimation {info['decimation']} ({info['analysed_sample_rate_hz']:g} Hz, band "
+            f"{info['band_hz'][0]:.3g}-{info['band_hz'][1]:.3g} Hz), max lag "
+            f"{info['nperseg']} samples = {info['max_lag_s']:.2f} s, references "
+            f"{info['references']}")
     return Run(np.array([m.frequency_hz for m in modes]),
-               np.array([m.damping_ratio for m in modes]), seconds)
+               np.array([m.damping_ratio for m in modes]), seconds, {"plan": plan})
 
 
 def pyoma_choices(ds: Dataset) -> tuple[int, int]:
@@ -400,7 +409,8 @@ def report(datasets: list[Dataset], all_scores: dict[str, dict[str, list[Score]]
         d = details[ds.name]
         lines += [f"## {ds.name}", "", ds.description + ".",
                   f"pyOMA2: decimation q = {d['q']}, br = {d['br']}, ordmax = 100, step 2; "
-                  f"SSI run median {d['ssi_s']:.1f} s (a preset's time includes it).", ""]
+                  f"SSI run median {d['ssi_s']:.1f} s (a preset's time includes it).", "",
+                  f"automodal's plan (first repetition): {d['plan']}.", ""]
         if ds.extra_below_hz < math.inf:
             lines += [f"Extra modes counted below {ds.extra_below_hz:g} Hz only.", ""]
         lines += summary_rows(ds, all_scores[ds.name]) + [""]
@@ -465,7 +475,8 @@ def main(argv: list[str] | None = None) -> int:
                     print(f"  pyOMA2 {p} failed: {r.detail['error']}", file=sys.stderr)
             first = next(iter(runs.values())).detail
             ssi_times[ds.name].append(first["ssi_s"])
-            details[ds.name] = {"q": first["q"], "br": first["br"]}
+            details[ds.name] = {"q": first["q"], "br": first["br"],
+                                **details.get(ds.name, {"plan": run.detail["plan"]})}
             print(f"rep {rep} {ds.name} pyOMA2: SSI {first['ssi_s']:.1f} s, "
                   + ", ".join(f"{p} {r.detail['clustering_s']:.1f} s" for p, r in runs.items()),
                   file=sys.stderr)

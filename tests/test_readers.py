@@ -557,8 +557,8 @@ def test_convert_csv_quiet(tmp_path):
 def test_convert_time_series_writes_their_frfs(tmp_path):
     import json
 
-    from automodal.core.from_time import as_frfdata
     from automodal.io.time_file import read_time, write_time
+    from automodal.pipeline import input_stage
     from automodal.timedata import TimeSeries
 
     source = tmp_path / "time.h5"
@@ -567,7 +567,7 @@ def test_convert_time_series_writes_their_frfs(tmp_path):
     out = tmp_path / "frf.h5"
     result = run_convert(str(source), str(out), "--quiet")
     assert result.returncode == 0, result.stderr
-    read, made = read_frf(out), as_frfdata(read_time(source))
+    read, made = read_frf(out), input_stage(read_time(source))  # what identify analyses
     np.testing.assert_array_equal(read.frf, made.frf)
     assert read.quantity == "velocity" and read.attributes["analysis"] == "operational"
     assert read.attributes["window_decay_per_s"] == made.attributes["window_decay_per_s"]

@@ -103,9 +103,12 @@ def time_options(sample_rate: float | None = None, forces: str | None = None,
     return TimeOptions(sample_rate=sample_rate, forces=parse_forces(forces), quantity=quantity)
 
 
-def read_input(path: str | os.PathLike[str], options: TimeOptions | None = None) -> FRFData:
+def read_input(
+    path: str | os.PathLike[str], options: TimeOptions | None = None,
+    settings: Settings | None = None,
+) -> FRFData:
     """Read any supported input file as FRFs (:func:`automodal.io.readers.read_any`; time
-    series go through the pipeline's input stage, :func:`automodal.core.from_time.as_frfdata`,
+    series go through the pipeline's input stage, :func:`automodal.pipeline.input_stage`,
     here, so that the report describes the FRFs that were analysed).
 
     Parameters
@@ -113,16 +116,18 @@ def read_input(path: str | os.PathLike[str], options: TimeOptions | None = None)
     path : str or path-like
     options : TimeOptions, optional
         What the user says about a file of samples (:func:`time_options`).
+    settings : Settings, optional
+        The run's settings (output-only records: the first pass and the band).
 
     Raises
     ------
     InputError
         If ``path`` is a folder, or the file cannot be read (or the options do not fit it).
     """
-    from automodal.core.from_time import as_frfdata
     from automodal.io.readers import read_any
+    from automodal.pipeline import input_stage
 
-    return as_frfdata(read_any(path, options))
+    return input_stage(read_any(path, options), settings)
 
 
 def _own_nodes(path: str | os.PathLike[str], data: FRFData) -> Geometry | None:
@@ -207,7 +212,7 @@ def run_file(
     from automodal.io.report import build_report
     from automodal.pipeline import identify
 
-    data = read_input(path, options)
+    data = read_input(path, options, settings)
     result = identify(data, settings, progress=progress)
     report = build_report(result, data, input_path=path, sha256=sha256)
     if geometry is None and report.input.mode_shape_xyz is None:

@@ -91,13 +91,13 @@ def convert(input_path: str, output: Path, geometry: str | None, test_date: str 
         if Path(input_path).is_dir():
             raise InputError("is a folder, not an input file", input_path)
         from automodal.app.run import time_options
-        from automodal.core.from_time import as_frfdata
         from automodal.io.frf_file import write_frf
         from automodal.io.readers import read_any
+        from automodal.pipeline import input_stage
         from automodal.timedata import TimeSeries
 
         read = read_any(input_path, time_options(sample_rate, forces, quantity))
-        data = as_frfdata(read)
+        data = input_stage(read)  # the FRFs identify would analyse (output-only: 2 passes)
         if geometry:
             from automodal.io.geometry import apply_to_data, read_geometry
 

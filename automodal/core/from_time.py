@@ -84,7 +84,7 @@ def as_frfdata(data: FRFData | TimeSeries, **options: Any) -> FRFData:
     frf.attributes["time_analysis"] = info
     frf.attributes["window_decay_per_s"] = float(decay)
     if info["analysis"] == "operational":  # half spectra: rational in exp(j w / fs)
-        frf.attributes["discrete_sample_rate_hz"] = float(data.sample_rate)
+        frf.attributes["discrete_sample_rate_hz"] = float(info["analysed_sample_rate_hz"])
     return frf
 
 
@@ -97,6 +97,7 @@ def frfdata_from_time(
     max_references: int = 3,
     lag_tail: float | None = None,
     usable_fraction: float = USABLE_FRACTION,
+    decimation: int = 1,
 ) -> tuple[FRFData, dict[str, Any]]:
     """Turn a time-series test into FRFs (H1 or half spectra) for the pipeline.
 
@@ -122,6 +123,11 @@ def frfdata_from_time(
         :data:`automodal.core.spectra.LAG_WINDOW_TAIL`).
     usable_fraction : float
         Fraction of the Nyquist band kept, in (0, 1].
+    decimation : int
+        Operational route only: the records are decimated by this factor first
+        (:func:`~automodal.core.spectra.decimate`), and the lines, the usable band and
+        ``nperseg`` are those of the decimated records (the pipeline chooses it from a first
+        pass, :mod:`automodal.core.ambient_plan`).
 
     Returns
     -------
@@ -140,7 +146,8 @@ def frfdata_from_time(
         ``n_records``, ``segments_per_record`` (H1); ``hits``, ``force_window_samples``,
         ``exponential_decay_per_s`` (impact); ``references``, ``reference_names``,
         ``max_lag_samples``, ``max_lag_s``, ``lag_window``, ``lag_window_tail``,
-        ``lag_window_decay_per_s`` (operational). A window decay ``a`` > 0 adds ``a`` to
+        ``lag_window_decay_per_s``, ``decimation``, ``analysed_sample_rate_hz``
+        (operational). A window decay ``a`` > 0 adds ``a`` to
         every pole's decay rate. :func:`as_frfdata` records it (and, for half spectra, the
         sample rate) in the attributes, from which the pipeline maps the poles back
         (:class:`~automodal.core.pole_map.PoleMap`); FRFs identified from this function's
@@ -160,6 +167,8 @@ def frfdata_from_time(
         raise ValueError(f"excitation must be one of {EXCITATIONS}, got {excitation!r}")
     if not 0.0 < usable_fraction <= 1.0:
         raise ValueError("usable_fraction must be in (0, 1]")
+    if int(decimation) != decimation or decimation < 1:
+        raise ValueError(f"decimation must be an integer >= 1, got {decimation!r}")
     _check_not_constant(ts.outputs, ts.output_names, "output")
     if ts.inputs is not None:
         _check_not_constant(ts.inputs, ts.input_names, "input")
@@ -180,6 +189,8 @@ def frfdata_from_time(
             excitation = "random" if hits is None else "impact"
     elif excitation in ("random", "impact") and ts.inputs is None:
         raise ValueError(f"{excitation} analysis needs measured forces (inputs)")
+    if decimation != 1 and excitation != "operational":
+        raise ValueError("decimation applies to the operational (output-only) route only")
 
     fs = ts.sample_rate
     info: dict[str, Any] = {
@@ -192,8 +203,9 @@ def frfdata_from_time(
     }
     if excitation == "operational":
         freq, H, coherence, records, input_names = _operational(
-            ts, nperseg, references, max_references, lag_tail, info
+            ts, nperseg, references, max_references, lag_tail, int(decimation), info
         )
+        fs = info["analysed_sample_rate_hz"]
         attributes["analysis"] = "operational"
     elif excitation == "impact":
         freq, H, coherence, records = _impact(ts, hits, info)
@@ -304,19 +316,25 @@ def _operational(
     references: list[int] | None,
     max_references: int,
     tail: float,
+    decimation: int,
     info: dict[str, Any],
 ) -> tuple[np.ndarray, np.ndarray, None, None, list[str]]:
-    """Half spectra of all outputs against (automatic) references."""
+    """Half spectra of all outputs (decimated first when asked) against (automatic)
+    references."""
     from automodal.core import spectra
 
-    fs = ts.sample_rate
-    L = int(nperseg or spectra.choose_segment(ts.n_samples, fs))
+    y = ts.outputs if decimation == 1 else spectra.decimate(ts.outputs, decimation)
+    fs = ts.sample_rate / decimation
+    n = y.shape[0]
+    L = int(nperseg or spectra.choose_segment(n, fs))
+    if not 1 <= L < n:
+        raise ValueError(f"the record ({n} samples) is shorter than the max lag ({L})")
     refs = (
         list(references)
         if references is not None
-        else spectra.choose_references(ts.outputs, fs, max_refs=max_references)
+        else spectra.choose_references(y, fs, max_refs=max_references)
     )
-    freq, G = spectra.half_spectra(ts.outputs, refs, fs, L, tail=tail)
+    freq, G = spectra.half_spectra(y, refs, fs, L, tail=tail)
     m = L
     names = [ts.output_names[i] for i in refs]
     info.update(
@@ -324,7 +342,9 @@ def _operational(
         excitation="operational",
         window="exponential lag window",
         nperseg=L,
-        n_segments=int(ts.n_samples // m),
+        decimation=int(decimation),
+        analysed_sample_rate_hz=float(fs),
+        n_segments=int(n // m),
         frequency_resolution_hz=fs / L,
         references=[int(i) for i in refs],
         reference_names=names,

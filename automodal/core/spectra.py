@@ -30,6 +30,7 @@ __all__ = [
     "choose_references",
     "choose_segment",
     "cross_correlation",
+    "decimate",
     "detect_hits",
     "exponential_decay",
     "force_band_limit",
@@ -661,6 +662,36 @@ def undo_exponential_window(
 # ---------------------------------------------------------------------------------------
 
 
+def decimate(x: np.ndarray, q: int) -> np.ndarray:
+    """Low-pass filter and keep every ``q``-th sample of each channel.
+
+    In one stage up to 12, else in the fewest stages of at most 12
+    (:func:`automodal.core.ambient_plan.decimation_stages`), each an
+    order-8 Chebyshev type I low-pass at 0.8 of the stage's new Nyquist frequency, run
+    forwards and backwards (:func:`scipy.signal.decimate` with ``zero_phase``): no phase
+    shift, and a gain flat to 0.1 dB per stage (two passes of 0.05 dB ripple) below 0.8 of the new
+    Nyquist frequency, which covers the band the input stage keeps (``fs / 2.56`` is 0.78 of it).
+
+    Parameters
+    ----------
+    x : ndarray, shape (n_samples, n_channels)
+    q : int
+        Factor, ``>= 1`` (1 returns ``x`` as floats).
+
+    Returns
+    -------
+    ndarray, shape (ceil(n_samples / q), n_channels)
+    """
+    from automodal.core.ambient_plan import decimation_stages
+
+    y = _channels(x, "x")
+    for stage in decimation_stages(int(q)):
+        if y.shape[0] < 64 * stage:
+            raise ValueError(f"the record ({y.shape[0]} samples) is too short to decimate")
+        y = scipy.signal.decimate(y, stage, axis=0, zero_phase=True)
+    return y
+
+
 def cross_correlation(
     outputs: np.ndarray, refs_idx: Sequence[int], max_lag: int
 ) -> np.ndarray:
@@ -790,6 +821,7 @@ def choose_references(
     max_refs: int = 3,
     nperseg: int | None = None,
     min_gain: float = 0.1,
+    min_cover: float = 0.1,
     max_channels: int = 64,
 ) -> list[int]:
     """Automatic reference channels for output-only analysis.
@@ -809,8 +841,19 @@ def choose_references(
        ``sum_p v_i(p)`` (it sees the most modes, each counted once whatever its energy);
        each next one adds the most coverage ``sum_p max(0, v_i(p) - c(p))``, with ``c(p)``
        the best visibility among the references taken. A channel collinear with a taken
-       one adds no coverage, so it is never taken. It stops at ``max_refs`` (3) or when
-       the gain is below ``min_gain`` (0.1) per peak.
+       one adds no coverage, so it is never taken. It stops at ``max_refs`` (3), or when
+       the gain is below ``min_gain`` (0.1) per peak *and* every peak is seen: ``c(p) >=
+       min_cover * max_i v_i(p)`` (``min_cover`` 0.1: a tenth of the best channel's
+       share, a third of its amplitude). The second condition matters when a reference
+       sits on a node of a mode or two: the coverage it lacks there is small beside the
+       peaks it sees (on a 3 x 2 grid with all six channels, the first reference saw four
+       of six peaks with share 0.17 to 0.34 and the other two with 0; the next channel's
+       gain was 0.5, under the 0.6 of ``min_gain``, and the two modes were missing from
+       every seed's half spectra). Why not more: a second reference that adds little is
+       not free. With ``min_cover`` 0.25 the 5-DOF chains of ``benchmarks/bench_oma.py``
+       took a second reference beside the free end; the lightly damped one (0.2 %) then
+       gave three spurious physical companions and took 12 times as long (1.0 s against
+       12.6 s), with the free end alone none.
 
     Without any peak (no structure visible) the one reference is the channel with the
     largest entry in the dominant eigenvector of the line-averaged ``|S(f)|`` (the channel
@@ -829,6 +872,9 @@ def choose_references(
         Welch segment (default :func:`choose_segment`, at most 4096).
     min_gain : float
         Least coverage gain per peak of a further reference.
+    min_cover : float
+        Least visibility of every peak by the references, relative to the best channel's
+        there; a further reference is taken while a peak is below it.
     max_channels : int
         Most channels examined.
 
@@ -879,7 +925,10 @@ def choose_references(
         gain = np.sum(np.clip(v - cover[:, None], 0.0, None), axis=0)
         gain[chosen] = -1.0
         best = int(np.argmax(gain))
-        if gain[best] < min_gain * peaks.size:
+        unseen = cover < min_cover * v.max(axis=1)
+        if gain[best] < min_gain * peaks.size and not unseen.any():
+            break
+        if gain[best] <= 0:
             break
         chosen.append(best)
         cover = np.maximum(cover, v[:, best])
