@@ -196,7 +196,8 @@ def calibrate_data(
         n_averages=averages_from_attributes(data.attributes))
     power = quantity_power(data.quantity)
     with threadpool_limits(1):
-        test = fit_test_model(omega, H, poles, power, noise.variance)
+        test = cal.refit_test_model(omega, H, noise.variance,
+                                    fit_test_model(omega, H, poles, power, noise.variance))
         fallback = (model.damping if model.damping is not None
                     else float(np.median(test.damping_ratio)))
         problem = cal.CalibrationProblem(

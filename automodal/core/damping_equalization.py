@@ -27,7 +27,7 @@ import numpy as np
 from automodal.core import synthesis
 from automodal.core.fe_model import UndampedModes
 from automodal.core.matching import match
-from automodal.core.modal import mac
+from automodal.core.modal import mac, pole_damping_ratio, pole_frequency_hz
 
 EQUALIZATIONS = ("paired", "common", "none")
 """The damping equalization schemes (module text)."""
@@ -71,12 +71,12 @@ class TestModel:
     @property
     def frequency_hz(self) -> np.ndarray:
         """Natural frequencies ``|lambda| / (2 pi)``."""
-        return np.abs(self.poles) / (2.0 * np.pi)
+        return pole_frequency_hz(self.poles)
 
     @property
     def damping_ratio(self) -> np.ndarray:
         """Damping ratios ``-Re lambda / |lambda|``."""
-        return -self.poles.real / np.abs(self.poles)
+        return pole_damping_ratio(self.poles)
 
     def residue_vectors(self) -> np.ndarray:
         """``vec(R_r)`` of every mode, ``(ny * nu, m)``."""
