@@ -110,6 +110,15 @@ def test_deviation_vanishes_at_the_truth_and_calibration_finds_it():
     np.testing.assert_allclose(fit.theta, 1 + DELTA, rtol=1e-6)
 
 
+def test_two_stage_calibration_reaches_the_truth_from_far_away():
+    omega, H, test, _ = _exact_test_model(1 + DELTA)
+    problem = cal.CalibrationProblem(chain_model(0.2, 5.0), omega, np.ones(H.shape), 0,
+                                     common_damping=0.05)
+    start = (1 + DELTA) * (1 + 0.7 * np.array([1, -1, 1, 1, -1, 1]))
+    fit = cal.calibrate_in_two_stages(problem, test, start)
+    np.testing.assert_allclose(fit.theta, 1 + DELTA, rtol=1e-5)
+
+
 def test_bootstrap_does_not_depend_on_the_worker_count():
     data, modes = chain_test(seed=3)
     omega, H = data.omega, data.frf

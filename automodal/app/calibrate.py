@@ -205,7 +205,7 @@ def calibrate_data(
             power=power, equalization=settings.equalization, fallback_damping=fallback,
             common_damping=settings.common_damping)
         nominal = np.ones(model.n_parameters)
-        fit = cal.calibrate(problem, test, nominal)
+        fit = cal.calibrate_in_two_stages(problem, test, nominal)
         boot = cal.bootstrap_calibrations(problem, H, noise.variance, test, fit.theta,
                                           settings.n_bootstrap, settings.seed, settings.jobs,
                                           progress)

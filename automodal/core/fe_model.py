@@ -132,5 +132,10 @@ def modal_frf(
     w = np.asarray(omega, dtype=float)[:, None]
     wr = modes.omega[None, :]
     inv = 1.0 / (wr**2 - w**2 + 2j * np.asarray(damping)[None, :] * wr * w)
-    H = np.einsum("kr,ir,jr->kij", inv, modes.at_outputs, modes.at_inputs, optimize=True)
+    H = (inv @ modes.residue_vectors().T).reshape(w.size, *_channels(modes))
     return H * (1j * np.asarray(omega, dtype=float))[:, None, None] ** power
+
+
+def _channels(modes: UndampedModes) -> tuple[int, int]:
+    """``(ny, nu)``."""
+    return modes.at_outputs.shape[0], modes.at_inputs.shape[0]
