@@ -285,6 +285,14 @@ def _result(problem: cal.CalibrationProblem, test: TestModel, fit: cal.Calibrati
                         " converge (left out of the statistics)")
     warnings += [f"parameter {p['name']} ended at its bound {p['value']:g}: widen the bounds"
                  " or question the model" for p in parameters if p["at_bound"]]
+    outside = [p["name"] for p in parameters
+               if not p["ci95"][0] <= p["value"] <= p["ci95"][1]]
+    if outside:
+        warnings.append(
+            f"the calibrated {', '.join(outside)} lie(s) outside the bootstrap's 95 % interval:"
+            " the bootstrap datasets (test data model plus the residuals) differ"
+            " systematically from the data, a sign that the model class cannot explain the"
+            " test; the intervals measure the noise only, not that error")
     return {
         "format": RESULT_FORMAT, "version": RESULT_VERSION, "automodal_version": __version__,
         "source": data.source, "quantity": data.quantity,
