@@ -16,6 +16,8 @@ from automodal import __version__
 
 # command name -> (module, attribute, one-line help)
 _COMMANDS = {
+    "calibrate": ("automodal.cli.calibrate_cmd", "calibrate",
+                  "Calibrate an FE model to an FRF file, with bootstrap bounds."),
     "convert": ("automodal.cli.convert_cmd", "convert",
                 "Convert UFF/UNV, CSV or NPZ FRFs to an FRF file."),
     "design": ("automodal.cli.design_cmd", "design",

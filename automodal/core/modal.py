@@ -33,12 +33,12 @@ class ModeSet:
     @property
     def frequency_hz(self) -> np.ndarray:
         """Undamped natural frequencies ``|lambda| / 2 pi`` in Hz."""
-        return np.abs(self.poles) / (2.0 * np.pi)
+        return pole_frequency_hz(self.poles)
 
     @property
     def damping_ratio(self) -> np.ndarray:
         """Damping ratios ``-Re lambda / |lambda|``."""
-        return -self.poles.real / np.abs(self.poles)
+        return pole_damping_ratio(self.poles)
 
     @property
     def mpc(self) -> np.ndarray:
@@ -47,6 +47,16 @@ class ModeSet:
 
     def __len__(self) -> int:
         return int(self.poles.size)
+
+
+def pole_frequency_hz(poles: np.ndarray) -> np.ndarray:
+    """Undamped natural frequencies ``|lambda| / 2 pi`` (Hz) of continuous-time poles."""
+    return np.abs(poles) / (2.0 * np.pi)
+
+
+def pole_damping_ratio(poles: np.ndarray) -> np.ndarray:
+    """Damping ratios ``-Re lambda / |lambda|`` of continuous-time poles."""
+    return -np.real(poles) / np.abs(poles)
 
 
 def normalise_shapes(psi: np.ndarray) -> np.ndarray:

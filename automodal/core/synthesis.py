@@ -34,12 +34,20 @@ class FixedPoleFit:
     normalised_error : ndarray, shape (ny, nu)
         ``sum |H - S|^2 / sum |H|^2`` per channel, over the lines (0: a perfect fit; 1: no
         better than zero; NaN for an all-zero channel).
+    poles : ndarray, shape (m,)
+        The distinct poles used, in the order of the coefficients.
+    coefficients : ndarray, shape (2 m [+ 2], ny * nu)
+        The fitted coefficients: the residues ``R_r`` of ``poles``, then those ``S_r`` of
+        their conjugates, then (with residuals) ``U`` and ``L``; :func:`synthesize`
+        evaluates them at any lines.
     """
 
     synthesized: np.ndarray
     upper: np.ndarray
     lower: np.ndarray
     normalised_error: np.ndarray
+    poles: np.ndarray | None = None
+    coefficients: np.ndarray | None = None
 
 
 def fit_fixed_poles(
@@ -78,7 +86,7 @@ def fit_fixed_poles(
     N, ny, nu = H.shape
     lam = np.unique(np.asarray(poles, dtype=complex).ravel())
     fit = np.unique(np.linspace(0, N - 1, min(N, max_lines)).round().astype(int))
-    basis = _basis(omega[fit], lam, power, residuals)
+    basis = pole_basis(omega[fit], lam, power, residuals)
     norms = np.linalg.norm(basis, axis=0)
     norms[norms == 0] = 1.0
     if basis.shape[1] == 0:
@@ -86,19 +94,48 @@ def fit_fixed_poles(
     else:
         rhs = H[fit].reshape(fit.size, ny * nu)
         coef = np.linalg.lstsq(basis / norms, rhs, rcond=None)[0] / norms[:, None]
-    S = np.empty_like(H)
-    for start in range(0, N, max_lines):
-        rows = slice(start, min(N, start + max_lines))
-        S[rows] = (_basis(omega[rows], lam, power, residuals) @ coef).reshape(-1, ny, nu)
+    S = synthesize(omega, lam, coef, power, residuals, max_lines).reshape(N, ny, nu)
     zero = np.zeros((ny, nu), dtype=complex)
     upper = coef[-2].reshape(ny, nu) if residuals else zero
     lower = coef[-1].reshape(ny, nu) if residuals else zero
     return FixedPoleFit(synthesized=S, upper=upper, lower=lower,
-                        normalised_error=normalised_error(H, S))
+                        normalised_error=normalised_error(H, S), poles=lam, coefficients=coef)
 
 
-def _basis(omega: np.ndarray, lam: np.ndarray, power: int, residuals: bool) -> np.ndarray:
-    """Columns of the model at ``omega``: each pole, its conjugate, then ``U`` and ``L``."""
+def synthesize(
+    omega: np.ndarray,
+    poles: np.ndarray,
+    coefficients: np.ndarray,
+    power: int = 0,
+    residuals: bool = True,
+    max_lines: int = 20000,
+) -> np.ndarray:
+    """The pole-residue model of the module text at ``omega``: ``(N, n_entries)``.
+
+    Parameters
+    ----------
+    omega : ndarray, shape (N,)
+        Angular frequencies (rad/s), positive.
+    poles : ndarray, shape (m,)
+        Distinct poles (``Im > 0``), in the order of ``coefficients``.
+    coefficients : ndarray, shape (2 m [+ 2], n_entries)
+        As :attr:`FixedPoleFit.coefficients`.
+    power, residuals, max_lines
+        As for :func:`fit_fixed_poles` (``residuals`` must be as the coefficients were fitted).
+    """
+    omega = np.asarray(omega, dtype=float)
+    lam = np.asarray(poles, dtype=complex).ravel()
+    coef = np.asarray(coefficients, dtype=complex)
+    S = np.empty((omega.size, coef.shape[1]), dtype=complex)
+    for start in range(0, omega.size, max_lines):
+        rows = slice(start, min(omega.size, start + max_lines))
+        S[rows] = pole_basis(omega[rows], lam, power, residuals) @ coef
+    return S
+
+
+def pole_basis(omega: np.ndarray, lam: np.ndarray, power: int, residuals: bool) -> np.ndarray:
+    """Columns of the model at ``omega`` (``(N, 2 m [+ 2])``): each pole, its conjugate,
+    then ``U`` and ``L``."""
     jw = 1j * omega[:, None]
     columns = [1.0 / (jw - lam[None, :]), 1.0 / (jw - lam.conj()[None, :])]
     if residuals:
