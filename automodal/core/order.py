@@ -361,8 +361,9 @@ def scan(
 
     With ``variance`` (the noise of ``H``), a stage is extended while its significant
     order (:func:`significant_order`) lies in the last third of it or the misfit still
-    falls (:func:`still_falling`), and the whitened residual is returned too. ``models`` (optional) receives ``(n, mu, C V)`` of every order
-    of the last stage (see :func:`misfit_scan`).
+    falls (:func:`still_falling`), and the whitened residual is returned too. ``models``
+    (optional) receives ``(n, mu, C V)`` of every order of the last stage (see
+    :func:`misfit_scan`).
 
     Returns
     -------
