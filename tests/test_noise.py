@@ -277,6 +277,15 @@ def test_bad_shapes_are_refused() -> None:
         noise.estimate_noise(H, coherence=np.ones((10, 2, 1)))
 
 
+def test_coherence_of_one_record_per_input_is_ignored() -> None:
+    """H1 of one hammer hit has coherence 1 everywhere: the data alone give the noise."""
+    H = modal_frf(n_in=1)
+    est = noise.estimate_noise(H, coherence=np.ones(H.shape), records=H[None])
+    assert est.source == "data" and any("coherence ignored" in a for a in est.assumptions)
+    est = noise.estimate_noise(H, coherence=np.ones(H.shape))
+    assert est.source == "data"
+
+
 def test_averages_from_attributes() -> None:
     assert noise.averages_from_attributes({"N_Averages": 32}) == 32.0
     assert noise.averages_from_attributes({"averages": np.array([16])}) == 16.0

@@ -615,18 +615,18 @@ def estimate_noise(
         raise ValueError(
             f"records must be (R, {', '.join(map(str, H.shape))}), got shape {rec.shape}"
         )
+    if coherence is not None and np.shape(coherence) != H.shape:
+        raise ValueError(
+            f"coherence must have the shape of frf {H.shape}, got {np.shape(coherence)}"
+        )
     if rec is not None and rec.shape[0] >= 2 and records_are_mean(rec, H):
         var = records_variance(rec)
         source = "records"
         notes.append(
             f"variance of the mean of {rec.shape[0]} records (sample variance / R)"
         )
-    elif coherence is not None:
+    elif coherence is not None and not _coherence_is_trivial(coherence, rec, H.shape[2]):
         coh = np.asarray(coherence, dtype=float)
-        if coh.shape != H.shape:
-            raise ValueError(
-                f"coherence must have the shape of frf {H.shape}, got {coh.shape}"
-            )
         source = "coherence"
         nu = H.shape[2]
         if n_averages is not None:
@@ -673,6 +673,9 @@ def estimate_noise(
                 "records ignored (fewer than 3, or several inputs with an FRF that is not "
                 "their mean)"
             )
+        if coherence is not None:
+            notes.append("coherence ignored: an H1 estimate from as many records as inputs"
+                         " (one hammer hit) has coherence 1 at every line, whatever the noise")
     var = np.where(np.isfinite(var), var, np.inf)
     var = np.maximum(np.minimum(var, np.finfo(float).max), floor)
     return NoiseEstimate(
@@ -684,6 +687,17 @@ def estimate_noise(
         n_averages=nd_used,
         assumptions=tuple(notes),
     )
+
+
+def _coherence_is_trivial(coherence: np.ndarray, records: np.ndarray | None, nu: int) -> bool:
+    """Whether a coherence says nothing of the noise: H1 from no more records than inputs
+    fits every record exactly, so its coherence is 1 at every line (one hammer hit: the
+    coherence law then gave a variance at the precision floor, and the SNR of every mode,
+    divided by a dispersion of 1e10, fell below that of noise). A coherence at 1 within
+    rounding on every line is read the same way."""
+    if records is not None and records.shape[0] <= nu:
+        return True
+    return bool(np.all(np.asarray(coherence, dtype=float) >= 1.0 - 1e-9))
 
 
 def _calibrated_averages(frf: np.ndarray, coherence: np.ndarray) -> float:

@@ -163,7 +163,7 @@ def cluster_against_reference(
         ref.modes.poles, threshold,
     )
     refsub = clustering.reference_subspaces(ref.moc, ref.candidates, ref.moc_real, groups,
-                                            capacity, threshold)
+                                            capacity)
     labels, rho = clustering.assign(o, reps.replicate, refsub, threshold)
     labels, _ = clustering.trim(labels, o, reps.poles, reps.replicate, refsub.dims)
     return Clusters(labels=labels, rho=rho, subspaces=refsub)
