@@ -320,15 +320,33 @@ def gram_sums(
     n_feat = n_a * (1 + ny * nu) + n_y * ny * ny
     step = max(1, int(chunk_bytes // (32 * n_feat)))
 
-    def partial(start: int) -> np.ndarray:
+    def features(start: int) -> tuple[slice, np.ndarray]:
         sl = slice(start, min(N, start + step))
-        F = _line_features(basis.values[:, sl], H[sl], toeplitz)
-        # real weights times complex features as one real matrix product
-        return c[:, sl] @ np.ascontiguousarray(F).view(float)
+        # complex features as real columns: real weights times them in one real product
+        return sl, np.ascontiguousarray(_line_features(basis.values[:, sl], H[sl],
+                                                       toeplitz)).view(float)
+
+    def partial(start: int) -> np.ndarray:
+        sl, F = features(start)
+        return c[:, sl] @ F
 
     acc = np.zeros((c.shape[0], 2 * n_feat))
-    for part in map_fn(partial, range(0, N, step)):
-        acc += part
+    if acc.nbytes <= chunk_bytes:
+        for part in map_fn(partial, range(0, N, step)):
+            acc += part
+    else:
+        # each chunk's sum is as large as the result (an orthonormal basis of 137 block
+        # rows, 100 replicates: 164 MB): added in place, a block of columns at a time,
+        # chunk after chunk (560 MB at the peak before, on one LADISK hammer hit)
+        # (the blocks of a chunk, disjoint, go to the ``map``)
+        cols = max(1, int(chunk_bytes // (8 * c.shape[0])))
+        for start in range(0, N, step):
+            sl, F = features(start)
+
+            def add(j: int, sl: slice = sl, F: np.ndarray = F) -> None:
+                acc[:, j : j + cols] += c[:, sl] @ F[:, j : j + cols]
+
+            list(map_fn(add, range(0, F.shape[1], cols)))
     tot = acc.view(complex)
     B = c.shape[0]
     shape_a = (B, 2 * q - 1) if toeplitz else (B, q, q)
