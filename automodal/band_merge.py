@@ -17,6 +17,7 @@ import numpy as np
 from automodal.core.stabilization import StabilizationPoles
 from automodal.core.sub_bands import SubBand
 from automodal.core.summary import numbered
+from automodal.core.synthesis import normalised_error
 from automodal.result import NoiseInfo, PoleTable, Result
 
 __all__ = ["merge_sub_bands", "shared_progress"]
@@ -72,6 +73,7 @@ def merge_sub_bands(
         offset += r.n_clusters
     table = PoleTable(*(np.concatenate([getattr(t, a) for t in poles])
                         for a in ("frequency_hz", "damping_ratio", "cluster", "replicate")))
+    frf_fit = _stacked_fit(fit)
     first = results[0]
     return Result(
         modes=numbered(modes),
@@ -86,9 +88,9 @@ def merge_sub_bands(
         reference_model=None,
         reciprocity=first.reciprocity,
         shape_channels=list(first.shape_channels),
-        n_lines=int(sum(f[0].size for f in fit)) if fit else first.n_lines,
-        frf_fit=_stacked_fit(fit),
-        frf_fit_error=_fit_error(fit),
+        n_lines=int(frf_fit[0].size) if frf_fit else first.n_lines,
+        frf_fit=frf_fit,
+        frf_fit_error=None if frf_fit is None else normalised_error(frf_fit[1], frf_fit[2]),
         stabilization=None if not stab else StabilizationPoles(
             *(np.concatenate([getattr(s, a) for s in stab])
               for a in ("order", "frequency_hz", "damping_ratio", "stability"))),
@@ -138,15 +140,6 @@ def _stacked_fit(fit: list) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
     if not fit:
         return None
     return tuple(np.concatenate([part[i] for part in fit]) for i in range(3))
-
-
-def _fit_error(fit: list) -> np.ndarray | None:
-    """``sum |H - S|^2 / sum |H|^2`` per channel over the merged band."""
-    if not fit:
-        return None
-    _, measured, synthesized = _stacked_fit(fit)
-    power = np.sum(np.abs(measured) ** 2, axis=0)
-    return np.sum(np.abs(measured - synthesized) ** 2, axis=0) / np.where(power > 0, power, 1)
 
 
 def _noise(results: Sequence[Result]) -> NoiseInfo | None:

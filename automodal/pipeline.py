@@ -380,9 +380,12 @@ def _identify(
                         " smallest one: envelope weighting and the misfit-floor order used")
         p = p.enveloped()
         choice = order.select_orders(p.z, p.Hs, p.line_weights, s.max_order, p.data.source)
+    n_bands = 1
     if s.sub_bands and s.max_order is None:
-        work = sub_bands.replicate_work(*p.Hs.shape, choice.reference)
-        plan = sub_bands.plan_sub_bands(p.frequency, p.Hs, sub_bands.sub_band_count(work))
+        n_bands = sub_bands.sub_band_count(sub_bands.replicate_work(*p.Hs.shape,
+                                                                     choice.reference))
+    if n_bands > 1:
+        plan = sub_bands.plan_sub_bands(p.frequency, p.Hs, n_bands)
         if len(plan) > 1:  # a sub-band too costly is split again in its own run
             return _identify_sub_bands(data, s, plan, warnings, progress, t0,
                                        choice.reference, part)

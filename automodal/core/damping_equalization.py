@@ -27,7 +27,7 @@ import numpy as np
 from automodal.core import synthesis
 from automodal.core.fe_model import UndampedModes
 from automodal.core.matching import match
-from automodal.core.modal import mac, pole_damping_ratio, pole_frequency_hz
+from automodal.core.modal import PoleValues, mac
 
 EQUALIZATIONS = ("paired", "common", "none")
 """The damping equalization schemes (module text)."""
@@ -45,7 +45,7 @@ PAIR_MIN_MAC = 0.3
 
 
 @dataclass(frozen=True)
-class TestModel:
+class TestModel(PoleValues):
     """The test data model: poles with residues and residual terms.
 
     Attributes
@@ -67,16 +67,6 @@ class TestModel:
     coefficients: np.ndarray
     power: int
     shape: tuple[int, int]
-
-    @property
-    def frequency_hz(self) -> np.ndarray:
-        """Natural frequencies ``|lambda| / (2 pi)``."""
-        return pole_frequency_hz(self.poles)
-
-    @property
-    def damping_ratio(self) -> np.ndarray:
-        """Damping ratios ``-Re lambda / |lambda|``."""
-        return pole_damping_ratio(self.poles)
 
     def residue_vectors(self) -> np.ndarray:
         """``vec(R_r)`` of every mode, ``(ny * nu, m)``."""

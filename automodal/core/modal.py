@@ -9,8 +9,24 @@ import numpy as np
 from automodal.core.bilinear import poles_d2c
 
 
+class PoleValues:
+    """``frequency_hz`` and ``damping_ratio`` of a class's continuous-time ``poles``."""
+
+    poles: np.ndarray
+
+    @property
+    def frequency_hz(self) -> np.ndarray:
+        """Undamped natural frequencies ``|lambda| / 2 pi`` in Hz."""
+        return pole_frequency_hz(self.poles)
+
+    @property
+    def damping_ratio(self) -> np.ndarray:
+        """Damping ratios ``-Re lambda / |lambda|``."""
+        return pole_damping_ratio(self.poles)
+
+
 @dataclass
-class ModeSet:
+class ModeSet(PoleValues):
     """The oscillatory modes (one per conjugate pair, ``Im lambda > 0``) of one model.
 
     Attributes
@@ -29,16 +45,6 @@ class ModeSet:
     mu: np.ndarray
     shapes: np.ndarray
     participation: np.ndarray | None = None
-
-    @property
-    def frequency_hz(self) -> np.ndarray:
-        """Undamped natural frequencies ``|lambda| / 2 pi`` in Hz."""
-        return pole_frequency_hz(self.poles)
-
-    @property
-    def damping_ratio(self) -> np.ndarray:
-        """Damping ratios ``-Re lambda / |lambda|``."""
-        return pole_damping_ratio(self.poles)
 
     @property
     def mpc(self) -> np.ndarray:

@@ -332,6 +332,12 @@ def peak_lines(H: np.ndarray, window: int = 5) -> np.ndarray:
     return np.flatnonzero(is_max & (rise > thr))
 
 
+def first_stage(n_peaks: int) -> int:
+    """Order of the misfit scan's first stage for ``n_peaks`` resonance peaks (two states a
+    peak and 40 to spare, at least 60)."""
+    return max(2 * int(n_peaks) + 40, 60)
+
+
 def scan_orders(n_scan: int) -> np.ndarray:
     """Orders of the misfit scan: every even order to 60, then steps of 4, then of 8 above 120."""
     orders = [n for n in range(2, min(n_scan, 60) + 1, 2)]
@@ -375,7 +381,7 @@ def scan(
     N, ny, nu = H.shape
     while n_max > 4 and subspace.scan_block_rows(n_max, ny) * (nu + ny) > 2 * N * nu:
         n_max -= 2  # the scan's larger block rows must fit the (full) data too
-    stage = min(n_max, max(2 * n_peaks + 40, 60))
+    stage = min(n_max, first_stage(n_peaks))
     while True:
         planned = scan_orders(max(4, stage))
         basis = subspace.row_basis(z, subspace.scan_block_rows(int(planned[-1]), ny))

@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from automodal.core.magnitude import log_magnitude, mean_magnitude
-from automodal.core.order import lines_needed, peak_lines
+from automodal.core.order import first_stage, lines_needed, peak_lines
 from automodal.core.subspace import block_rows
 
 __all__ = ["WORK_LIMIT", "SubBand", "plan_sub_bands", "replicate_work", "sub_band_count"]
@@ -112,7 +112,7 @@ def plan_sub_bands(frequency_hz: np.ndarray, H: np.ndarray, n_bands: int) -> lis
     logm = log_magnitude(mean_magnitude(H), 1e-12)
     for k in range(min(int(n_bands), peaks.size), 1, -1):
         bands = _split(f, logm, peaks, k)
-        if all(_lines(f, b.analysed_hz) >= lines_needed(_first_stage(b.n_peaks), ny, nu)
+        if all(_lines(f, b.analysed_hz) >= lines_needed(first_stage(b.n_peaks), ny, nu)
                and b.analysed_hz != span for b in bands):
             return bands
     return [SubBand(span, span, int(peaks.size))]
@@ -138,12 +138,6 @@ def _split(f: np.ndarray, logm: np.ndarray, peaks: np.ndarray, k: int) -> list[S
         bands.append(SubBand((float(f[lo]), float(f[hi])), (float(f[a_lo]), float(f[a_hi])),
                              int(g.size)))
     return bands
-
-
-def _first_stage(n_peaks: int) -> int:
-    """The first stage of the order scan for ``n_peaks`` peaks (as
-    :func:`automodal.core.order.scan` sizes it)."""
-    return max(2 * n_peaks + 40, 60)
 
 
 def _lines(f: np.ndarray, band: tuple[float, float]) -> int:
