@@ -70,7 +70,10 @@ def merge_sub_bands(
             f, measured, synthesized = r.frf_fit
             keep = band.holds(f, last)
             fit.append((f[keep], measured[keep], synthesized[keep]))
-        offset += r.n_clusters
+        # past every cluster id of this result (a sub-band split again has merged ids
+        # beyond its count of clusters)
+        offset += max([r.n_clusters, *(m.cluster + 1 for m in r.modes),
+                       int(np.max(p.cluster, initial=-1)) + 1])
     table = PoleTable(*(np.concatenate([getattr(t, a) for t in poles])
                         for a in ("frequency_hz", "damping_ratio", "cluster", "replicate")))
     frf_fit = _stacked_fit(fit)

@@ -370,22 +370,30 @@ def _identify(
     analysis = data.attributes.get("time_analysis")
     warnings: list[str] = [] if part or not isinstance(analysis, dict) else list(
         analysis.get("warnings", []))  # the input stage's (hits dropped)
-    p = prepare(data, s, warnings)
+    # a sub-band's data checks repeat the whole band's, and its edges are our cuts: its
+    # warnings about them (an edge on a resonance, no peak) would only mislead
+    p = prepare(data, s, [] if part else warnings)
+    rank = None if p.variance is None else whitening.output_rank(p.Hs, p.line_weights,
+                                                                 p.variance)
+    split_work = sub_bands.WORK_LIMIT if s.sub_bands and s.max_order is None else None
     choice = order.select_orders(p.z, p.Hs, p.line_weights, s.max_order, p.data.source,
-                                 variance=p.variance)
+                                 variance=p.variance, rank=rank, split_work=split_work)
     if p.variance is not None and choice.rule == "floor":
         # the whitened residual never fell below the smallest model's: the noise weighting
         # gives the order test nothing to stand on, so the envelope path runs instead
         warnings.append("no scanned model fitted the noise-whitened data better than the"
                         " smallest one: envelope weighting and the misfit-floor order used")
         p = p.enveloped()
-        choice = order.select_orders(p.z, p.Hs, p.line_weights, s.max_order, p.data.source)
+        choice = order.select_orders(p.z, p.Hs, p.line_weights, s.max_order, p.data.source,
+                                     rank=rank, split_work=split_work)
     n_bands = 1
     if s.sub_bands and s.max_order is None:
-        n_bands = sub_bands.sub_band_count(sub_bands.replicate_work(*p.Hs.shape,
-                                                                     choice.reference))
+        n_bands = sub_bands.sub_band_count(sub_bands.replicate_work(
+            *p.Hs.shape, choice.reference, choice.block_rows))
     if n_bands > 1:
-        plan = sub_bands.plan_sub_bands(p.frequency, p.Hs, n_bands)
+        plan = sub_bands.plan_sub_bands(p.frequency, p.Hs, n_bands, stabilization.
+                                        stable_frequencies(choice.models, p.T, p.band_hz,
+                                                           s.zeta_max, p.pole_map))
         if len(plan) > 1:  # a sub-band too costly is split again in its own run
             return _identify_sub_bands(data, s, plan, warnings, progress, t0,
                                        choice.reference, part)
@@ -397,7 +405,7 @@ def _identify(
             "automatic")
     ref = reference.build_reference(
         p.z, p.Hs, p.scales, p.line_weights, choice.reference, p.T,
-        p.band_rad_s, s.zeta_max, s.coalescence, p.pole_map,
+        p.band_rad_s, s.zeta_max, s.coalescence, p.pole_map, choice.block_rows,
     )
     ref_dispersion, H_ref = 1.0, None
     if p.variance is not None:

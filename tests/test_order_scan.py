@@ -76,3 +76,50 @@ def test_scan_stops_on_the_floor():
     orders, misfit = order.scan(z, Hs, lw, 60, order.count_peaks(Hs))
     assert orders[-1] < 60  # stopped once the floor was reached
     assert order.order_at_floor(orders, misfit) == 6
+
+
+def _noisy_siso(level: float = 0.1, seed: int = 0, n_lines: int = 3000):
+    """A 4-DOF chain's accelerance at one point with additive noise of ``level`` times its
+    RMS (a sensor noise floor: wiggles everywhere between the resonances), scaled as the
+    pipeline scales it, with the noise's variance."""
+    system = sim.damp(sim.chain(4), "rayleigh", zeta=0.01)
+    freq = sim.frequency_lines(1.25 * sim.natural_frequencies_hz(system).max(), n_lines)
+    data, _ = sim.simulate_test(system, [3], [3], freq, "acceleration")
+    keep = data.frequency > 0
+    H = data.frf[keep]
+    rng = np.random.default_rng(seed)
+    std = level * np.sqrt(np.mean(np.abs(H) ** 2))
+    Hn = H + std / np.sqrt(2) * (rng.normal(size=H.shape) + 1j * rng.normal(size=H.shape))
+    w = 2 * np.pi * data.frequency[keep]
+    T = bilinear.default_scale(w[0], w[-1])
+    return bilinear.to_unit_circle(w, T), Hn, np.ones(w.size), np.full(H.shape, std**2)
+
+
+def test_peaks_of_a_noise_floor_do_not_count_with_the_noise_model():
+    z, H, _, var = _noisy_siso()
+    assert order.count_peaks(H) > 20  # the roughness rule alone counts the wiggles
+    assert 1 <= order.count_peaks(H, variance=var) <= 6  # 4 modes
+    zx, Hx, _ = _exact()  # noise-free: the same peaks with a negligible noise model
+    assert order.count_peaks(Hx, variance=np.full(Hx.shape, 1e-30)) == 3
+
+
+def test_scan_within_the_noise_stops_soon_after_the_true_order():
+    z, H, lw, var = _noisy_siso()
+    choice = order.select_orders(z, H, lw, variance=var)
+    assert choice.rule == "significance" and choice.n0 <= 10
+    assert choice.scanned[-1] <= 60  # not on to the largest order fitting noise
+
+
+def test_fits_noise():
+    # 400 lines, 1 x 1: 800 degrees of freedom less 4 a mode
+    assert order.fits_noise(800.0, 400, 1, 1, 2)
+    assert order.fits_noise(2.0 * 796, 400, 1, 1, 2)
+    assert not order.fits_noise(2.0 * 796 + 1, 400, 1, 1, 2)
+    assert not order.fits_noise(np.nan, 400, 1, 1, 2)
+
+
+def test_reference_block_rows_follow_the_outputs_rank():
+    assert subspace.reference_block_rows(96, 40) == subspace.block_rows(96, 40) == 4
+    assert subspace.reference_block_rows(96, 40, 40) == 4
+    assert subspace.reference_block_rows(96, 40, 20) == 7  # ceil(1.2 * 96 / 20) + 1
+    assert subspace.reference_block_rows(10, 1, 1) == 11

@@ -110,3 +110,50 @@ def test_explicit_order_and_setting_keep_one_model(split_everything):
 def test_setting_is_validated():
     with pytest.raises(ValueError, match="sub_bands"):
         Settings(sub_bands="yes")
+
+
+def test_plan_follows_the_modes_a_model_sees_where_peaks_undercount():
+    data, modes = _siso_chain()
+    f, H = data.frequency[1:], data.frf[1:]
+    n_peaks = peak_lines(H).size
+    # more modes than peaks (as where modes overlap): they set the groups
+    seen = np.sort(np.concatenate([modes.frequency_hz, modes.frequency_hz[-4:] * 1.002]))
+    plan = sub_bands.plan_sub_bands(f, H, 2, seen)
+    assert len(plan) == 2
+    assert sum(b.n_peaks for b in plan) == seen.size > n_peaks
+    for a, b in zip(plan[:-1], plan[1:]):
+        assert a.core_hz[1] == b.core_hz[0]
+    # fewer modes than peaks: the peaks stay
+    few = sub_bands.plan_sub_bands(f, H, 2, modes.frequency_hz[:3])
+    assert sum(b.n_peaks for b in few) == n_peaks
+
+
+def test_cuts_fall_at_the_deepest_valley_near_the_even_split():
+    f = np.arange(200.0)
+    logm = np.zeros(200)
+    markers = np.array([10, 30, 50, 70, 90, 110, 130, 150, 170, 190])
+    logm[markers] = 1.0
+    logm[115:125] = -1.0  # the valley between markers 5 and 6 is the deepest
+    logm[120] = -3.0
+    logm[40] = -5.0  # deeper, but beyond a quarter of a group from the even split
+    bands = sub_bands._split(f, logm, markers, 2)
+    assert bands[0].core_hz[1] == 120.0  # the even split would cut between markers 4 and 5
+    assert [b.n_peaks for b in bands] == [6, 4]
+
+
+def test_stable_frequencies_are_the_poles_that_stay_put():
+    from automodal.core.bilinear import poles_c2d
+    from automodal.core.stabilization import stable_frequencies
+
+    T = 0.01
+    f = np.array([2.0, 5.0, 9.0])
+    lam = -0.01 * 2 * np.pi * f + 2j * np.pi * f
+    s = np.concatenate([lam, lam.conj()])
+    noise = np.array([-1.0 + 2j * np.pi * 7.0, -1.0 - 2j * np.pi * 7.0])  # 2.3 % damped
+    moved = np.array([-0.3 + 2j * np.pi * 7.5, -0.3 - 2j * np.pi * 7.5])
+    m1 = (6, poles_c2d(np.concatenate([s, noise]), T), np.ones((2, 8), complex))
+    m2 = (8, poles_c2d(np.concatenate([s, moved]), T), np.ones((2, 8), complex))
+    got = stable_frequencies([m1, m2], T, (0.5, 20.0), 0.2)
+    # natural frequencies of the three modes; the wandering pole is left out
+    np.testing.assert_allclose(got, np.abs(lam) / (2 * np.pi), rtol=1e-9)
+    assert stable_frequencies([m2], T, (0.5, 20.0), 0.2).size == 0

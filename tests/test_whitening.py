@@ -215,3 +215,17 @@ def test_noise_resampling_needs_the_noise_weighting():
         Settings(resample="noise", weighting="envelope")
     with pytest.raises(SettingsError, match="weighting"):
         Settings(weighting="bogus")
+
+
+def test_output_rank_counts_the_directions_above_the_noise():
+    rng = np.random.default_rng(3)
+    N, ny, nu, r = 200, 12, 2, 5
+    shapes = rng.normal(size=(ny, r))
+    H = np.einsum("ir,krj->kij", shapes, rng.normal(size=(N, r, nu)) * 10.0).astype(complex)
+    var = np.full(H.shape, 1e-2)
+    H += 0.1 * (rng.normal(size=H.shape) + 1j * rng.normal(size=H.shape)) / np.sqrt(2)
+    assert whitening.output_rank(H, np.ones(N), var) == r
+    # pure noise has no direction above it, full-rank data all of them
+    assert whitening.output_rank(H - H + 0.1 * rng.normal(size=H.shape), np.ones(N), var) == 0
+    full = 10.0 * rng.normal(size=H.shape)
+    assert whitening.output_rank(full, np.ones(N), var) == ny

@@ -79,6 +79,7 @@ def build_reference(
     zeta_max: float,
     coalescence: float,
     pole_map: PoleMap | None = None,
+    q: int | None = None,
 ) -> Reference:
     """Identify the reference model of order ``n`` and prepare its groups.
 
@@ -104,8 +105,11 @@ def build_reference(
         Half-power bandwidths within which candidates group.
     pole_map : PoleMap, optional
         From the model's poles to the structure's (window decay, sampled spectra).
+    q : int, optional
+        Block rows (default :func:`automodal.core.subspace.block_rows` of ``n``).
     """
-    basis = subspace.row_basis(z, subspace.block_rows(n, Hs.shape[1]))
+    q = subspace.block_rows(n, Hs.shape[1]) if q is None else int(q)
+    basis = subspace.row_basis(z, q)
     scaled = subspace.identify_scaled(z, Hs, n, T, basis, weights=weights)
     modal = ModalModel.from_state_space(scaled)
     modes = modal.modes(pole_map)

@@ -113,6 +113,29 @@ def stabilization_poles(
                               stability=flags.astype(int))
 
 
+def stable_frequencies(
+    models: Sequence[tuple[int, np.ndarray, np.ndarray]],
+    T: float,
+    band_hz: tuple[float, float],
+    zeta_max: float,
+    pole_map: PoleMap | None = None,
+) -> np.ndarray:
+    """Natural frequencies (Hz) of the largest model's poles that are stable in frequency
+    and damping against the model before it: where a model of the band sees modes, the
+    wandering poles of noise left out. Empty with fewer than two models.
+
+    On the dense grids of family seed 252 (26-40 true modes, 20-40 outputs) their count was
+    within one of the true number of modes in the band where the magnitude had 4-17 peaks;
+    poles stable in frequency alone were 10-70 % more (in a dense band a noise pole often
+    lies within 1 % of some pole of the model before)."""
+    if len(models) < 2:
+        return np.zeros(0)
+    st = stabilization_poles(models[-2:], T, band_hz, zeta_max, pole_map)
+    both = STABLE_FREQUENCY | STABLE_DAMPING
+    top = (st.order == int(models[-1][0])) & (st.stability & both == both)
+    return np.sort(st.frequency_hz[top])
+
+
 def stability_flags(
     f: np.ndarray,
     zeta: np.ndarray,

@@ -28,7 +28,7 @@ import numpy as np
 
 from automodal.core.magnitude import log_magnitude, mean_magnitude
 from automodal.core.order import first_stage, lines_needed, peak_lines
-from automodal.core.subspace import block_rows
+from automodal.core.subspace import replicate_work
 
 __all__ = ["WORK_LIMIT", "SubBand", "plan_sub_bands", "replicate_work", "sub_band_count"]
 
@@ -40,13 +40,6 @@ the 100 replicates take about 5 s. Most of the family's test systems stay whole 
 files of seed 252; the four dense grids with reference orders of 160-200 are split):
 splitting adds sub-band edges, where noise modes can pass for physical, so a model that is
 cheap enough is identified whole."""
-
-
-def replicate_work(n_lines: int, ny: int, nu: int, order: int) -> float:
-    """Estimated multiply-adds of one replicate's projection: ``N (q (ny + nu))^2`` for a
-    model of ``order`` states with its block rows ``q``
-    (:func:`automodal.core.subspace.block_rows`)."""
-    return float(n_lines) * float(block_rows(int(order), ny) * (ny + nu)) ** 2
 
 
 def sub_band_count(work: float, limit: float | None = None) -> int:
@@ -70,7 +63,8 @@ class SubBand:
     analysed_hz : (float, float)
         Lines the sub-band's identification uses: the core and one resonance beyond each cut.
     n_peaks : int
-        Resonance peaks in the core.
+        Resonances in the core: peaks of the magnitude, or the modes a model saw there
+        (see :func:`plan_sub_bands`).
     """
 
     core_hz: tuple[float, float]
@@ -84,8 +78,10 @@ class SubBand:
         return (f >= lo) & ((f <= hi) if last else (f < hi))
 
 
-def plan_sub_bands(frequency_hz: np.ndarray, H: np.ndarray, n_bands: int) -> list[SubBand]:
-    """Split a band into ``n_bands`` sub-bands with as many resonance peaks each.
+def plan_sub_bands(
+    frequency_hz: np.ndarray, H: np.ndarray, n_bands: int, modes_hz: np.ndarray | None = None
+) -> list[SubBand]:
+    """Split a band into ``n_bands`` sub-bands with as many resonances each.
 
     Parameters
     ----------
@@ -96,47 +92,71 @@ def plan_sub_bands(frequency_hz: np.ndarray, H: np.ndarray, n_bands: int) -> lis
         magnitude).
     n_bands : int
         Sub-bands wanted (:func:`sub_band_count`).
+    modes_hz : ndarray, optional
+        Frequencies of the modes a model of the band sees (the order scan's largest model,
+        :func:`automodal.core.stabilization.stable_frequencies`). Used instead of the
+        magnitude's peaks when they are more: where modes overlap, one peak stands for
+        several modes (an 8 x 10 grid, 40 outputs: 11 peaks for the 13 modes below
+        15.5 Hz, and 11 for the 67 above), and sub-bands of equal peak counts are far from
+        equal work.
 
     Returns
     -------
     list of SubBand
-        Fewer sub-bands when there are fewer peaks (:func:`automodal.core.order.peak_lines`)
-        than ``n_bands``, or when so many would leave a sub-band too few lines for its order
-        scan (:func:`automodal.core.order.lines_needed` of its first stage) or one that
-        analyses the whole band again; one over the whole band when no split is possible.
+        Fewer sub-bands when there are fewer resonances than ``n_bands``, or when so many
+        would leave a sub-band too few lines for its order scan
+        (:func:`automodal.core.order.lines_needed` of its first stage) or one that analyses
+        the whole band again; one over the whole band when no split is possible.
     """
     f = np.asarray(frequency_hz, dtype=float)
-    peaks = peak_lines(H)
+    markers = peak_lines(H)
+    if modes_hz is not None:
+        lines = np.unique(np.clip(np.searchsorted(f, np.asarray(modes_hz, dtype=float)),
+                                  0, f.size - 1))
+        if lines.size > markers.size:
+            markers = lines
     span = (float(f[0]), float(f[-1]))
     _, ny, nu = H.shape
     logm = log_magnitude(mean_magnitude(H), 1e-12)
-    for k in range(min(int(n_bands), peaks.size), 1, -1):
-        bands = _split(f, logm, peaks, k)
+    for k in range(min(int(n_bands), markers.size), 1, -1):
+        bands = _split(f, logm, markers, k)
         if all(_lines(f, b.analysed_hz) >= lines_needed(first_stage(b.n_peaks), ny, nu)
                and b.analysed_hz != span for b in bands):
             return bands
-    return [SubBand(span, span, int(peaks.size))]
+    return [SubBand(span, span, int(markers.size))]
 
 
-def _split(f: np.ndarray, logm: np.ndarray, peaks: np.ndarray, k: int) -> list[SubBand]:
-    """``k`` sub-bands of consecutive peak groups, cut at the valleys between groups."""
-    groups = np.array_split(np.arange(peaks.size), k)
+def _split(f: np.ndarray, logm: np.ndarray, markers: np.ndarray, k: int) -> list[SubBand]:
+    """``k`` sub-bands of consecutive resonances (``markers``: their lines), cut at the
+    valleys between groups.
+
+    Each cut lies at the deepest valley between two neighbouring resonances within a
+    quarter of a group of the even split, so that a cut falls where the magnitude is lowest
+    rather than between two modes of one overlapping pair.
+    """
+    m = markers.size
 
     def valley(i: int) -> int:
-        """The line of least magnitude between peak ``i`` and peak ``i + 1``."""
-        a, b = int(peaks[i]), int(peaks[i + 1])
+        """The line of least magnitude between resonance ``i`` and resonance ``i + 1``."""
+        a, b = int(markers[i]), int(markers[i + 1])
         return a + int(np.argmin(logm[a : b + 1]))
 
+    starts = [0]
+    for nominal in (int(round(j * m / k)) for j in range(1, k)):
+        reach = max(0, (m // k) // 4)
+        lo, hi = max(starts[-1] + 1, nominal - reach), min(m - 1, nominal + reach)
+        lo = min(lo, hi)
+        starts.append(min(range(lo, hi + 1), key=lambda i: logm[valley(i - 1)]))
     n = f.size
     bands = []
-    for g in groups:
-        first, last = int(g[0]), int(g[-1])
+    for first, end in zip(starts, starts[1:] + [m]):
+        last = end - 1
         lo = 0 if first == 0 else valley(first - 1)
-        hi = n - 1 if last == peaks.size - 1 else valley(last)
+        hi = n - 1 if last == m - 1 else valley(last)
         a_lo = 0 if first < 2 else valley(first - 2)
-        a_hi = n - 1 if last + 2 > peaks.size - 1 else valley(last + 1)
+        a_hi = n - 1 if last + 2 > m - 1 else valley(last + 1)
         bands.append(SubBand((float(f[lo]), float(f[hi])), (float(f[a_lo]), float(f[a_hi])),
-                             int(g.size)))
+                             int(end - first)))
     return bands
 
 

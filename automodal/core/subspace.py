@@ -64,6 +64,31 @@ def scan_block_rows(n: int, ny: int) -> int:
     return max(block_rows(n, ny), int(math.ceil(3.0 * n / ny)) + 1)
 
 
+def reference_block_rows(n: int, ny: int, rank: int | None = None) -> int:
+    """Block rows of a reference model of ``n`` states whose ``ny`` outputs carry only
+    ``rank`` independent directions: ``ceil(1.2 n / rank) + 1`` (:func:`block_rows` with
+    ``rank`` for ``ny``; the default when ``rank`` is None or ``ny``).
+
+    ``q ny >= 1.2 n`` assumes each block row adds ``ny`` new directions. Outputs that see
+    fewer (many sensors on part of a structure, or a narrow band with fewer modes than
+    sensors) add only as many as their data have (:func:`automodal.core.whitening.
+    output_rank`). On a dense grid's sub-band (8 x 10 grid, 40 outputs on one half,
+    15.5-22 Hz: 17 modes, 1 % proportional noise, 20 directions above the noise) the
+    reference of 96 states found 1 of the 17 modes with ``q = 4`` and 16 with ``q = 7``.
+    """
+    if ny <= 1 or rank is None or rank >= ny:
+        return block_rows(n, ny)
+    return max(block_rows(n, ny), block_rows(n, max(2, int(rank))))
+
+
+def replicate_work(n_lines: int, ny: int, nu: int, order: int, q: int | None = None) -> float:
+    """Estimated multiply-adds of one replicate's projection: ``N (q (ny + nu))^2`` for a
+    model of ``order`` states with ``q`` block rows (default :func:`block_rows` of
+    ``order``)."""
+    q = block_rows(int(order), ny) if q is None else int(q)
+    return float(n_lines) * float(q * (ny + nu)) ** 2
+
+
 def min_lines(n: int, ny: int, nu: int, q: int | None = None) -> int:
     """Fewest frequency lines that identify order ``n`` with ``q`` block rows.
 
@@ -453,7 +478,8 @@ def schur_from_data(
             P = P * np.sqrt(np.asarray(weights, float)[sl])[None, :]
         U, Y = data_matrices(P, H[sl])
         Z = np.vstack([U, Y])
-        G += Z.real @ Z.real.T + Z.imag @ Z.imag.T
+        W = np.concatenate([Z.real, Z.imag], axis=1)  # one product, not two (20 % less)
+        G += W @ W.T
     return _schur(G[: q * nu, : q * nu], G[q * nu :, : q * nu], G[q * nu :, q * nu :])
 
 

@@ -88,6 +88,33 @@ def whitening(
     return w / np.mean(w), np.sqrt(a)
 
 
+RANK_EDGE = 3.0
+"""A direction of the outputs counts (:func:`output_rank`) when its singular value exceeds
+this many times the largest that noise alone would give (the Marchenko-Pastur edge): below
+it a direction is not told from the noise."""
+
+
+def output_rank(Hs: np.ndarray, weights: np.ndarray, variance: np.ndarray) -> int:
+    """Directions of the outputs that stand out of the noise: singular values of the
+    line-weighted FRF (``ny`` x ``N nu``) above :data:`RANK_EDGE` times the noise edge
+    ``sigma (sqrt(N nu) + sqrt(ny))``, with ``sigma^2`` the median weighted noise variance.
+
+    Parameters
+    ----------
+    Hs : ndarray, shape (N, ny, nu)
+        Channel-scaled FRF.
+    weights : ndarray, shape (N,)
+        Line weights (:func:`whitening`).
+    variance : ndarray, shape (N, ny, nu)
+        Noise variance of ``Hs``'s entries.
+    """
+    N, ny, nu = Hs.shape
+    X = (Hs * np.sqrt(weights)[:, None, None]).transpose(1, 0, 2).reshape(ny, N * nu)
+    sigma = np.sqrt(np.median(variance * weights[:, None, None]))
+    sv = np.linalg.svd(X, compute_uv=False)
+    return int(np.count_nonzero(sv > RANK_EDGE * sigma * (np.sqrt(N * nu) + np.sqrt(ny))))
+
+
 def whitened_residual(H_model: np.ndarray, H: np.ndarray, variance: np.ndarray) -> float:
     """``sum 2 |H_model - H|^2 / var`` over lines and entries: chi-square with ``2 N ny nu``
     degrees of freedom (less the fitted parameters) when the model is right."""
