@@ -373,8 +373,7 @@ def _identify(
     # a sub-band's data checks repeat the whole band's, and its edges are our cuts: its
     # warnings about them (an edge on a resonance, no peak) would only mislead
     p = prepare(data, s, [] if part else warnings)
-    rank = None if p.variance is None else whitening.output_rank(p.Hs, p.line_weights,
-                                                                 p.variance)
+    rank = None if p.variance is None else whitening.output_rank(p.Hs, p.variance)
     split_work = sub_bands.WORK_LIMIT if s.sub_bands and s.max_order is None else None
     choice = order.select_orders(p.z, p.Hs, p.line_weights, s.max_order, p.data.source,
                                  variance=p.variance, rank=rank, split_work=split_work)
