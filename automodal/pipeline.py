@@ -382,6 +382,7 @@ def _identify(
     analysis = data.attributes.get("time_analysis")
     warnings: list[str] = [] if part or not isinstance(analysis, dict) else list(
         analysis.get("warnings", []))  # the input stage's (hits dropped)
+    tell(progress, "checks")
     p = prepare(data, s, warnings)
     tell(progress, "orders")
     choice = order.select_orders(p.z, p.Hs, p.line_weights, s.max_order, p.data.source,

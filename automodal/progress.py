@@ -20,6 +20,7 @@ __all__ = ["STAGES", "Progress", "ProgressCallback", "counter", "tell", "within"
 STAGES = (
     "reading",  # the input file
     "spectra",  # time records to FRFs or half spectra
+    "checks",  # the band, the data checks and the noise model
     "orders",  # the order scan
     "reference",  # the reference model
     "bootstrap",  # the bootstrap replicates (counted)

@@ -21,7 +21,7 @@ from automodal.progress import Progress, counter, tell, within
 from automodal.settings import Settings
 
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_data" / "chain6.h5"
-IDENTIFY = ["orders", "reference", "bootstrap", "summary", "refinement"]
+IDENTIFY = ["checks", "orders", "reference", "bootstrap", "summary", "refinement"]
 """The stages of one identification with a noise model, in order."""
 
 
@@ -114,7 +114,7 @@ def test_records_with_forces_send_the_spectra_stage_first():
                                      duration=120.0)
     events: list[Progress] = []
     identify(ts, Settings(seed=0, n_bootstrap=4, jobs=1), events.append)
-    assert labels(events)[:2] == ["spectra", "orders"], labels(events)
+    assert labels(events)[:3] == ["spectra", "checks", "orders"], labels(events)
 
 
 def test_run_file_reads_first_and_writes_last(tmp_path):
@@ -178,7 +178,7 @@ def test_a_split_band_sends_each_sub_band_s_stages(monkeypatch):
     n = len(result.orders["sub_bands"])
     assert n >= 2
     got = labels(events)
-    assert got[0] == "orders"  # the whole band's scan, before the split
+    assert got[:2] == ["checks", "orders"]  # the whole band's, before the split
     expected = [f"sub-band {i} of {n}: {x}" for i in range(1, n + 1) for x in IDENTIFY]
     assert [x for x in got if x.startswith("sub-band")] == expected, got
     for i in range(1, n + 1):
