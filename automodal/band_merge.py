@@ -10,7 +10,7 @@ of every sub-band are kept in ``orders["sub_bands"]``.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -20,7 +20,7 @@ from automodal.core.summary import numbered
 from automodal.core.synthesis import normalised_error
 from automodal.result import NoiseInfo, PoleTable, Result
 
-__all__ = ["merge_sub_bands", "shared_progress"]
+__all__ = ["merge_sub_bands"]
 
 
 def merge_sub_bands(
@@ -99,25 +99,6 @@ def merge_sub_bands(
               for a in ("order", "frequency_hz", "damping_ratio", "stability"))),
         noise=_noise(results),
     )
-
-
-def shared_progress(
-    progress: Callable[[int], None] | None, n_parts: int
-) -> Callable[[int], None] | None:
-    """A progress callback for one of ``n_parts`` runs that together count as one: every
-    ``n_parts`` replicates finished report one (``None`` stays ``None``)."""
-    if progress is None:
-        return None
-    state = {"done": 0, "told": 0}
-
-    def tell(n: int) -> None:
-        state["done"] += n
-        due = state["done"] // n_parts - state["told"]
-        if due > 0:
-            state["told"] += due
-            progress(due)
-
-    return tell
 
 
 def _orders(results: Sequence[Result], plan: Sequence[SubBand]) -> dict:

@@ -33,7 +33,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from automodal.band_merge import merge_sub_bands, shared_progress
+from automodal.band_merge import merge_sub_bands
 from automodal.core import (
     bootstrap,
     checks,
@@ -54,6 +54,7 @@ from automodal.core.pole_map import PoleMap
 from automodal.core.reciprocity import apply_reciprocity
 from automodal.errors import InputError
 from automodal.frfdata import FRFData
+from automodal.progress import ProgressCallback, counter, tell, within
 from automodal.quantities import quantity_power
 from automodal.result import IdentifiedMode, NoiseInfo, PoleTable, Result
 from automodal.settings import Settings
@@ -242,7 +243,7 @@ def _estimate_noise(data: FRFData, freq: np.ndarray, H: np.ndarray) -> NoiseEsti
 def identify(
     data: FRFData | TimeSeries,
     settings: Settings | None = None,
-    progress: Callable[[int], None] | None = None,
+    progress: ProgressCallback | None = None,
 ) -> Result:
     """Identify the modes of a test, with no human choice.
 
@@ -253,7 +254,9 @@ def identify(
     settings : Settings, optional
         Overrides of the automatic choices.
     progress : callable, optional
-        Called with the number of replicates finished since the last call.
+        Called with a :class:`~automodal.progress.Progress` (stage, done, total, part) as
+        each stage starts and as the bootstrap replicates finish; it never changes the
+        result.
 
     Returns
     -------
@@ -266,7 +269,7 @@ def identify(
     # end to end on a 6-DOF chain, and far steadier on a busy machine); the replicates
     # share the cores through worker threads (automodal.core.parallel).
     with threadpool_limits(1):
-        data = input_stage(data, s)  # time series become FRFs here
+        data = input_stage(data, s, progress)  # time series become FRFs here
         return _identify(data, s, progress)
 
 
@@ -280,7 +283,10 @@ FIRST_PASS_REPLICATES = 20
 modes apart; their values are not reported)."""
 
 
-def input_stage(data: FRFData | TimeSeries, settings: Settings | None = None) -> FRFData:
+def input_stage(
+    data: FRFData | TimeSeries, settings: Settings | None = None,
+    progress: ProgressCallback | None = None,
+) -> FRFData:
     """The test as the FRFs the identification analyses.
 
     FRFs pass unchanged; time series with measured forces go through
@@ -294,11 +300,14 @@ def input_stage(data: FRFData | TimeSeries, settings: Settings | None = None) ->
     MIN_BLOCKS` = 48); the half spectra are made again with them. Why,
     with the measurements: :mod:`automodal.core.ambient_plan`. The plan and the first
     pass's modes go in ``attributes["time_analysis"]["plan"]``. Without a physical mode in
-    the first pass, its half spectra are kept (and the plan says so).
+    the first pass, its half spectra are kept (and the plan says so). ``progress`` as in
+    :func:`identify` (the first pass's stages with the part ``"first pass"``).
     """
     from automodal.timedata import TimeSeries
 
     if not isinstance(data, TimeSeries) or data.inputs is not None:
+        if isinstance(data, TimeSeries):
+            tell(progress, "spectra")
         return as_frfdata(data)
     from threadpoolctl import threadpool_limits
 
@@ -308,10 +317,12 @@ def input_stage(data: FRFData | TimeSeries, settings: Settings | None = None) ->
     s = settings or Settings()
     m0 = min(FIRST_PASS_MAX_LAG,
              ambient_plan.lag_length(data.n_samples, data.sample_rate, None))
+    first_pass = within(progress, "first pass")
+    tell(first_pass, "spectra")
     first = as_frfdata(data, nperseg=m0)
     with threadpool_limits(1):
         first_result = _identify(first, replace(s, n_bootstrap=min(
-            s.n_bootstrap, FIRST_PASS_REPLICATES)), None)
+            s.n_bootstrap, FIRST_PASS_REPLICATES)), first_pass)
     phys = [m for m in first_result.modes if m.physical and np.isfinite(m.frequency_hz)]
     f = np.array([m.frequency_hz for m in phys], dtype=float)
     z = np.array([m.damping_ratio for m in phys], dtype=float)
@@ -324,6 +335,7 @@ def input_stage(data: FRFData | TimeSeries, settings: Settings | None = None) ->
             "first_pass_modes_hz": [], "note": "no physical mode in a first pass: its"
             " half spectra are analysed"}
         return first
+    tell(progress, "spectra")
     out = as_frfdata(data, nperseg=plan.nperseg, decimation=plan.decimation)
     out.attributes["time_analysis"]["plan"] = {
         **plan.to_dict(), "first_pass_modes_hz": [float(x) for x in f],
@@ -333,16 +345,16 @@ def input_stage(data: FRFData | TimeSeries, settings: Settings | None = None) ->
 
 def _identify_sub_bands(
     data: FRFData, s: Settings, plan: list[sub_bands.SubBand], warnings: list[str],
-    progress: Callable[[int], None] | None, t0: float, order_of_whole: int,
+    progress: ProgressCallback | None, t0: float, order_of_whole: int,
     part: bool = False,
 ) -> Result:
     """One identification per sub-band of ``plan``, merged
     (:func:`automodal.band_merge.merge_sub_bands`); ``warnings`` are the whole band's so
     far, ``t0`` when the run started, ``order_of_whole`` the reference order one model of
     the band would have had, ``part`` as in :func:`_identify`."""
-    tell = shared_progress(progress, len(plan))
-    results = [_identify(data, replace(s, band_hz=b.analysed_hz), tell, part=True)
-               for b in plan]
+    results = [_identify(data, replace(s, band_hz=b.analysed_hz),
+                         within(progress, f"sub-band {i} of {len(plan)}"), part=True)
+               for i, b in enumerate(plan, 1)]
     if any(r.shape_channels != results[0].shape_channels for r in results):
         # the data checks dropped different channels in different sub-bands: the shapes
         # cannot be put side by side, so the band is identified as one
@@ -362,7 +374,7 @@ def _identify_sub_bands(
 
 
 def _identify(
-    data: FRFData, s: Settings, progress: Callable[[int], None] | None, part: bool = False
+    data: FRFData, s: Settings, progress: ProgressCallback | None, part: bool = False
 ) -> Result:
     """:func:`identify` with BLAS limited by the caller (``part``: one sub-band of a split
     band, whose modes' resolution warnings the merged result gives)."""
@@ -370,11 +382,13 @@ def _identify(
     analysis = data.attributes.get("time_analysis")
     warnings: list[str] = [] if part or not isinstance(analysis, dict) else list(
         analysis.get("warnings", []))  # the input stage's (hits dropped)
+    tell(progress, "checks")
     # a sub-band's data checks repeat the whole band's, and its edges are our cuts: its
     # warnings about them (an edge on a resonance, no peak) would only mislead
     p = prepare(data, s, [] if part else warnings)
     rank = None if p.variance is None else whitening.output_rank(p.Hs, p.variance)
     split_work = sub_bands.WORK_LIMIT if s.sub_bands and s.max_order is None else None
+    tell(progress, "orders")
     choice = order.select_orders(p.z, p.Hs, p.line_weights, s.max_order, p.data.source,
                                  variance=p.variance, rank=rank, split_work=split_work)
     if p.variance is not None and choice.rule == "floor":
@@ -402,6 +416,7 @@ def _identify(
             f"{s.max_order // 2} modes) was reached before a model fitted the data "
             f"({order.count_peaks(p.Hs)} resonance peaks in the FRF): raise it, or leave it "
             "automatic")
+    tell(progress, "reference")
     ref = reference.build_reference(
         p.z, p.Hs, p.scales, p.line_weights, choice.reference, p.T,
         p.band_rad_s, s.zeta_max, s.coalescence, p.pole_map, choice.block_rows,
@@ -410,7 +425,9 @@ def _identify(
     if p.variance is not None:
         H_ref = ref.modal.frequency_response(p.z)
         ref_dispersion = whitening.dispersion(H_ref, p.Hs, p.variance, choice.reference)
-    reps = _replicates(p, s, ref, choice.reference, progress, warnings, ref_dispersion, H_ref)
+    reps = _replicates(p, s, ref, choice.reference, counter(progress, "bootstrap", s.n_bootstrap),
+                       warnings, ref_dispersion, H_ref)
+    tell(progress, "summary")
     clusters = reference.cluster_against_reference(ref, reps, s.n_bootstrap, s.threshold)
     snr2 = None
     if p.variance is not None:
@@ -421,6 +438,7 @@ def _identify(
         s.min_physicalness, snr2, whitening.mode_parameters(*p.Hs.shape[1:]),
     )
     if p.noise is not None:
+        tell(progress, "refinement")
         modes = summary.refine_physical_modes(
             modes, ref.modal.poles, ref.modal.oscillatory, p.omega, p.H, p.noise_variance,
             p.pole_map)

@@ -190,3 +190,59 @@ def test_physicalness_accepts_one_feature_vector_and_stays_in_unit_interval():
         phys = physicalness(x)
         assert phys.shape == (1,)
         assert 0.0 <= phys[0] <= 1.0
+
+
+# ---------------------------------------------------------------------------------------
+# fuzzy c-means (our own loop, in place of skfuzzy.cmeans)
+# ---------------------------------------------------------------------------------------
+
+
+def test_fuzzy_c_means_on_two_separated_groups():
+    from automodal.core.fuzzy_cmeans import fuzzy_c_means
+
+    rng = np.random.default_rng(3)
+    a = rng.normal(0.0, 0.1, (30, 2))
+    b = rng.normal(5.0, 0.1, (20, 2))
+    points = np.vstack([a, b])
+    got = fuzzy_c_means(points, rng.random((2, 50)), m=2.0, tolerance=1e-10)
+    assert got.converged
+    centres = got.centres[np.argsort(got.centres[:, 0])]
+    assert np.allclose(centres[0], a.mean(axis=0), atol=0.02)
+    assert np.allclose(centres[1], b.mean(axis=0), atol=0.02)
+    assert np.allclose(got.memberships.sum(axis=0), 1.0)
+
+
+def test_fuzzy_c_means_is_a_fixed_point_of_its_own_step():
+    """At convergence the centres are the u^m-weighted means of the points under the
+    memberships those centres give (Bezdek's two conditions)."""
+    from automodal.core.fuzzy_cmeans import fuzzy_c_means, memberships
+
+    rng = np.random.default_rng(4)
+    points = rng.normal(size=(40, 4))
+    got = fuzzy_c_means(points, rng.random((2, 40)), m=2.0, tolerance=1e-12, max_iterations=2000)
+    u = memberships(points, got.centres, 2.0)
+    w = u**2
+    assert np.allclose(w @ points / w.sum(axis=1, keepdims=True), got.centres, atol=1e-9)
+
+
+def test_fuzzy_c_means_agrees_with_scikit_fuzzy():
+    skfuzzy = pytest.importorskip("skfuzzy")
+    from automodal.core.fuzzy_cmeans import fuzzy_c_means
+
+    rng = np.random.default_rng(5)
+    for _ in range(20):
+        n = int(rng.integers(3, 60))
+        points = np.vstack([rng.normal(0, 1, (n, 4)), rng.normal(3, 1, (n // 2 + 1, 4))])
+        u0 = rng.random((2, points.shape[0]))
+        ours = fuzzy_c_means(points, u0, 2.0, tolerance=1e-9, max_iterations=300)
+        theirs, *_ = skfuzzy.cmeans(points.T, 2, 2.0, error=1e-9, maxiter=300, init=u0)
+        assert np.allclose(ours.centres, theirs, rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("bad", [dict(m=1.0), dict(initial=np.ones((2, 3)))])
+def test_fuzzy_c_means_refuses_a_bad_call(bad):
+    from automodal.core.fuzzy_cmeans import fuzzy_c_means
+
+    args = dict(points=np.zeros((4, 2)), initial=np.ones((2, 4)), m=2.0) | bad
+    with pytest.raises(ValueError):
+        fuzzy_c_means(**args)

@@ -12,7 +12,6 @@ from __future__ import annotations
 import json
 import os
 import time
-from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -26,6 +25,7 @@ from automodal.core.fe_model import ParametrizedModel, undamped_modes
 from automodal.core.modal import mac
 from automodal.errors import InputError
 from automodal.frfdata import FRFData
+from automodal.progress import ProgressCallback, counter
 
 RESULT_FORMAT = "automodal-calibration"
 RESULT_VERSION = 1
@@ -126,20 +126,20 @@ def calibrate_file(
     frf_path: str | os.PathLike[str],
     model_path: str | os.PathLike[str],
     settings: CalibrationSettings,
-    progress: Callable[[int], None] | None = None,
+    progress: ProgressCallback | None = None,
 ) -> CalibrationOutcome:
     """Read both files and calibrate (:func:`calibrate_data`)."""
     from automodal.app.run import read_input
     from automodal.io.model_file import read_model
 
     model = read_model(model_path)
-    data = read_input(frf_path)
+    data = read_input(frf_path, progress=progress)
     check_channels(data, model, os.fspath(model_path))
     return calibrate_data(data, model, settings, progress)
 
 
 def _identified_poles(data: FRFData, settings: CalibrationSettings,
-                      progress: Callable[[int], None] | None) -> tuple[np.ndarray, Any]:
+                      progress: ProgressCallback | None) -> tuple[np.ndarray, Any]:
     """The physical modes' poles as they are in the data, and the pipeline's result."""
     from automodal.core.synthesis import modal_poles
     from automodal.pipeline import identify, pole_map_of
@@ -161,7 +161,7 @@ def calibrate_data(
     data: FRFData,
     model: ParametrizedModel,
     settings: CalibrationSettings,
-    progress: Callable[[int], None] | None = None,
+    progress: ProgressCallback | None = None,
 ) -> CalibrationOutcome:
     """Calibrate ``model`` to ``data`` (the whole run but the files).
 
@@ -172,8 +172,9 @@ def calibrate_data(
         Its outputs and inputs must match ``data``'s channels (:func:`check_channels`).
     settings : CalibrationSettings
     progress : callable, optional
-        Called with the number of replicates finished (the identification's, then the
-        calibration's: ``2 * n_bootstrap`` in all).
+        Called with a :class:`~automodal.progress.Progress` as each stage starts (the
+        identification's, then ``"calibration"``) and as the replicates of each bootstrap
+        finish.
 
     Returns
     -------
@@ -208,7 +209,7 @@ def calibrate_data(
         fit = cal.calibrate_in_two_stages(problem, test, nominal)
         boot = cal.bootstrap_calibrations(problem, H, noise.variance, test, fit.theta,
                                           settings.n_bootstrap, settings.seed, settings.jobs,
-                                          progress)
+                                          counter(progress, "calibration", settings.n_bootstrap))
         result = _result(problem, test, fit, boot, nominal, identified, settings, data)
         fe_before = cal.fe_frf(problem, nominal, test)
         fe_after = cal.fe_frf(problem, fit.theta, test)

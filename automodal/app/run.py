@@ -12,12 +12,13 @@ from __future__ import annotations
 
 import glob
 import os
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 from automodal.errors import InputError
+from automodal.progress import ProgressCallback, tell
 
 if TYPE_CHECKING:
     from automodal.app.monitoring import MonitoringResult
@@ -105,7 +106,7 @@ def time_options(sample_rate: float | None = None, forces: str | None = None,
 
 def read_input(
     path: str | os.PathLike[str], options: TimeOptions | None = None,
-    settings: Settings | None = None,
+    settings: Settings | None = None, progress: ProgressCallback | None = None,
 ) -> FRFData:
     """Read any supported input file as FRFs (:func:`automodal.io.readers.read_any`; time
     series go through the pipeline's input stage, :func:`automodal.pipeline.input_stage`,
@@ -118,6 +119,9 @@ def read_input(
         What the user says about a file of samples (:func:`time_options`).
     settings : Settings, optional
         The run's settings (output-only records: the first pass and the band).
+    progress : callable, optional
+        As in :func:`run_file` (``"reading"``, then the input stage's ``"spectra"`` and first
+        pass).
 
     Raises
     ------
@@ -127,7 +131,8 @@ def read_input(
     from automodal.io.readers import read_any
     from automodal.pipeline import input_stage
 
-    return input_stage(read_any(path, options), settings)
+    tell(progress, "reading")
+    return input_stage(read_any(path, options), settings, progress)
 
 
 def _own_nodes(path: str | os.PathLike[str], data: FRFData) -> Geometry | None:
@@ -165,7 +170,7 @@ def run_file(
     baseline: Report | None = None,
     baseline_path: str | None = None,
     thresholds: Thresholds | None = None,
-    progress: Callable[[int], None] | None = None,
+    progress: ProgressCallback | None = None,
     sha256: str | None = None,
     geometry: Geometry | None = None,
     options: TimeOptions | None = None,
@@ -187,7 +192,8 @@ def run_file(
     thresholds : Thresholds, optional
         Of the baseline check.
     progress : callable, optional
-        Called with the number of bootstrap replicates done since the last call.
+        Called with a :class:`~automodal.progress.Progress` as each stage starts (reading,
+        the identification's, writing) and as the bootstrap replicates finish.
     sha256 : str, optional
         The SHA-256 of the input when the caller has hashed it already (see
         :func:`automodal.io.report.build_report`); default: hashed here.
@@ -212,7 +218,7 @@ def run_file(
     from automodal.io.report import build_report
     from automodal.pipeline import identify
 
-    data = read_input(path, options, settings)
+    data = read_input(path, options, settings, progress)
     result = identify(data, settings, progress=progress)
     report = build_report(result, data, input_path=path, sha256=sha256)
     if geometry is None and report.input.mode_shape_xyz is None:
@@ -232,5 +238,7 @@ def run_file(
                 f"cannot be checked against {baseline_path or 'the baseline'}: {exc}",
                 os.fspath(path),
             ) from None
+    if outputs:
+        tell(progress, "writing")
     written = [save(out, report, result) for out in outputs]
     return RunOutcome(report=report, result=result, check=check, written=written)

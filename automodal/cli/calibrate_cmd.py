@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 
 import click
@@ -66,12 +65,10 @@ def calibrate(frf_path: str, model_path: str, output: Path, seed: int, n_bootstr
                                        band_hz=None if band is None else tuple(band),
                                        equalization=equalization,
                                        common_damping=common_damping)
-        if not quiet and sys.stderr.isatty():
-            with click.progressbar(length=2 * n_bootstrap, label="bootstrap",
-                                   file=sys.stderr) as bar:
-                outcome = calibrate_file(frf_path, model_path, settings, bar.update)
-        else:
-            outcome = calibrate_file(frf_path, model_path, settings)
+        from automodal.cli.progress_display import progress_line, wanted
+
+        with progress_line(wanted(quiet)) as progress:
+            outcome = calibrate_file(frf_path, model_path, settings, progress)
         write_result(output, outcome.result)
         if plot_dir:
             from automodal.app.calibration_plots import save_calibration_figures

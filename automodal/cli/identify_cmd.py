@@ -5,7 +5,7 @@ from __future__ import annotations
 import os
 import sys
 import warnings
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -28,7 +28,6 @@ from automodal.errors import InputError
 
 if TYPE_CHECKING:
     from automodal.app.batch import FileOutcome
-    from automodal.app.run import RunOutcome
     from automodal.report_model import Report
     from automodal.settings import Settings
     from automodal.tracking import Thresholds
@@ -271,18 +270,13 @@ def identify(
                                 thresholds, report_format, force, jobs, dask_scheduler,
                                 as_json, quiet))
         from automodal.app.run import run_file
+        from automodal.cli.progress_display import progress_line, wanted
         from automodal.io.report import format_table
 
-        def run(progress: Callable[[int], None] | None = None) -> RunOutcome:
-            return run_file(input_path, settings, outputs, baseline, baseline_path,
-                            thresholds, progress=progress, geometry=geometry,
-                            options=options)
-
-        if not quiet and sys.stderr.isatty():
-            with click.progressbar(length=n_bootstrap, label="bootstrap", file=sys.stderr) as bar:
-                outcome = run(bar.update)
-        else:
-            outcome = run()
+        with progress_line(wanted(quiet, as_json)) as progress:
+            outcome = run_file(input_path, settings, outputs, baseline, baseline_path,
+                               thresholds, progress=progress, geometry=geometry,
+                               options=options)
         if plot_dir:
             from automodal.app.plots import save_figures
 
