@@ -26,11 +26,7 @@ def cli(*args: object):
 # ------------------------------------------------------------------------------ imports
 
 HEAVY = ("automodal.app.batch", "automodal.app.monitoring", "scipy.stats", "scipy.ndimage",
-         "scipy.signal", "scipy.optimize", "scipy.special", "scipy.spatial", "scipy.sparse",
-         "scipy.fft", "skfuzzy", "matplotlib", "dask", "joblib", "pyuff")
-"""Modules a run on an FRF file does not need: scipy.special (0.07 s) and skfuzzy with the
-scipy.spatial and scipy.sparse it pulls in (0.06 s) are replaced by core/integer_gamma,
-core/student_t and core/fuzzy_cmeans; the others serve other commands or inputs."""
+         "scipy.signal", "scipy.optimize", "matplotlib", "dask", "joblib", "pyuff")
 
 
 def test_importing_the_command_line_loads_no_library():

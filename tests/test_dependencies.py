@@ -290,6 +290,7 @@ def test_the_scan_sees_the_imports_it_should(package_audit):
     # a scanner that found nothing would pass the tests above
     for dist in ("numpy", "scipy", "h5py", "click", "matplotlib", "pyuff", "joblib"):
         assert dist in package_audit.required, dist
+    assert "scikit-fuzzy" in package_audit.required  # lazily, in physicalness, unguarded
     assert "pyuff" in package_audit.required  # under `except Exception`: not an import guard
     assert "threadpoolctl" in package_audit.required  # lazily, in pipeline, unguarded
     assert package_audit.optional.get("dask") == {"dask"}  # guarded, names [dask]

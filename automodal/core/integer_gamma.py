@@ -3,9 +3,8 @@
 For a shape ``k = 1, 2, ...`` the upper regularised incomplete gamma function is a Poisson
 tail, ``Q(k, x) = exp(-x) sum_{j<k} x^j / j!``, and ``P(k, x) = 1 - Q(k, x)`` is the
 distribution function of a chi-square variable with ``2 k`` degrees of freedom at ``2 x``.
-These few lines stand in for ``scipy.special.gammainc`` / ``gammaincinv`` / ``chdtri`` where
-the shape is a whole number (the noise model's local variances, the refinement's duplicate
-test), so that a run does not import
+These few lines stand in for ``scipy.special.gammainc`` / ``gammaincinv`` where the shape is
+a whole number (the noise model's local variances), so that a run does not import
 :mod:`scipy.special` (about 0.07 s) for two numbers.
 
 Accuracy: every Poisson term is computed to a few rounding errors (directly for small
@@ -18,7 +17,7 @@ from __future__ import annotations
 
 import math
 
-__all__ = ["gamma_p", "gamma_p_inverse", "gamma_q", "gamma_q_inverse"]
+__all__ = ["gamma_p", "gamma_p_inverse", "gamma_q"]
 
 
 def _check_shape(k: int) -> int:
@@ -119,48 +118,21 @@ def gamma_p_inverse(k: int, p: float) -> float:
     Returns
     -------
     float
-        The quantile (:func:`_inverse`).
+        The quantile: Newton steps on the logarithm of the smaller tail (``P`` for
+        ``p <= 1/2``, ``Q`` above), kept inside a bracket that is halved whenever a step
+        would leave it, to a relative 1e-15.
     """
+    k = _check_shape(k)
     if not 0.0 < p < 1.0:
         raise ValueError(f"the probability must be in (0, 1), not {p!r}")
-    return _inverse(k, p, upper=False) if p <= 0.5 else _inverse(k, 1.0 - p, upper=True)
-
-
-def gamma_q_inverse(k: int, q: float) -> float:
-    """The ``x`` with ``Q(k, x) = q`` (``scipy.special.gammainccinv(k, q)``; twice it is the
-    chi-square quantile ``scipy.special.chdtri(2 k, q)``).
-
-    Parameters
-    ----------
-    k : int
-        Shape, at least 1.
-    q : float
-        Upper tail probability, in (0, 1).
-
-    Returns
-    -------
-    float
-        The quantile (:func:`_inverse`).
-    """
-    if not 0.0 < q < 1.0:
-        raise ValueError(f"the probability must be in (0, 1), not {q!r}")
-    return _inverse(k, q, upper=True) if q <= 0.5 else _inverse(k, 1.0 - q, upper=False)
-
-
-def _inverse(k: int, tail: float, upper: bool) -> float:
-    """The ``x`` at which the lower (``P``) or ``upper`` (``Q``) tail equals ``tail``
-    (at most 1/2, so that it is the smaller tail and known to full relative precision):
-    Newton steps on the logarithm of that tail, kept inside a bracket that is halved
-    whenever a step would leave it, to a relative 1e-15."""
-    k = _check_shape(k)
-    target = math.log(tail)
-    which = 1 if upper else 0
+    lower = p <= 0.5
+    target = math.log(p) if lower else math.log1p(-p)
 
     def excess(x: float) -> float:
         """``log tail(x) - target``, signed so that it increases with ``x``."""
-        value = _tails(k, x)[which]
-        got = math.log(value) - target if value > 0 else -math.inf
-        return -got if upper else got
+        tail = _tails(k, x)[0 if lower else 1]
+        value = math.log(tail) - target if tail > 0 else -math.inf
+        return value if lower else -value
 
     lo, hi = 0.0, float(k)
     while excess(hi) < 0:  # widen until the root is bracketed
@@ -172,9 +144,10 @@ def _inverse(k: int, tail: float, upper: bool) -> float:
             lo = x
         else:
             hi = x
-        value = _tails(k, x)[which]
+        P, Q = _tails(k, x)
+        tail = P if lower else Q
         # d log tail / dx = +-density / tail, density = x^(k-1) exp(-x) / (k-1)!
-        slope = _term(k - 1, x) / value if value > 0 else 0.0
+        slope = _term(k - 1, x) / tail if tail > 0 else 0.0
         step = x - f / slope if slope > 0 and math.isfinite(f) else math.nan
         new = step if lo < step < hi else 0.5 * (lo + hi)
         if abs(new - x) <= 1e-15 * x:

@@ -39,8 +39,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from automodal.core.fuzzy_cmeans import fuzzy_c_means
-
 FEATURE_NAMES = (
     "occurrence",
     "log10_decorrelation",
@@ -198,6 +196,8 @@ def physicalness(
         Physicalness in [0, 1]: the membership, times ``occurrence / SPORADIC`` for a
         cluster seen by fewer than :data:`SPORADIC` of the replicates.
     """
+    import skfuzzy
+
     features = np.atleast_2d(np.asarray(features, dtype=float))
     n = features.shape[0]
     if n == 0:
@@ -216,7 +216,7 @@ def physicalness(
     copies = max(1, int(round(anchor_weight * n)))
     data = np.vstack([X, np.repeat(protos, copies, axis=0)])
     u0 = _memberships(data, protos, m)
-    centres = fuzzy_c_means(data, u0, m, tolerance=1e-9, max_iterations=300).centres
+    centres, *_ = skfuzzy.cmeans(data.T, 2, m, error=1e-9, maxiter=300, init=u0)
     phys = int(np.argmin(np.linalg.norm(centres - protos[0], axis=1)))
     if phys == int(np.argmin(np.linalg.norm(centres - protos[1], axis=1))):
         centres = protos  # both centres collapsed onto one side: fall back to the prototypes

@@ -29,9 +29,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from automodal.core.integer_gamma import gamma_q_inverse
-from automodal.core.student_t import t_quantile
-
 MAX_ITERATIONS = 30
 """Gauss-Newton (Levenberg-Marquardt) iterations at most; from the subspace estimate the
 fit converges in a few."""
@@ -363,8 +360,10 @@ def _small_sample(clusters: float) -> float:
     """Variance factor of a clustered sandwich from ``clusters`` effective clusters: the
     usual ``G / (G - 1)``, and ``(t_{0.975, G-1} / 1.96)^2`` so that the reported
     ``estimate +- 1.96 std`` is the t interval with ``G - 1`` degrees of freedom."""
+    from scipy.special import stdtrit  # the t quantile (scipy.stats costs 0.6 s to import)
+
     g = max(float(clusters), 2.0)
-    return g / (g - 1.0) * (t_quantile(g - 1.0, 0.975) / 1.959963984540054) ** 2
+    return g / (g - 1.0) * (float(stdtrit(g - 1.0, 0.975)) / 1.959963984540054) ** 2
 
 
 def _whitened(
@@ -606,6 +605,8 @@ def duplicate_poles(
     ndarray of bool, shape (m,)
         True for a duplicate.
     """
+    from scipy.special import chdtri  # chi-square quantile (scipy.stats: 0.6 s import)
+
     poles = np.asarray(poles, dtype=complex).ravel()
     fixed = np.asarray(fixed, dtype=complex).ravel()
     m = poles.size
@@ -624,9 +625,7 @@ def duplicate_poles(
     if Y.shape[0] < 2 * (2 * m + fixed.size + len(RESIDUAL_POWERS)):
         return dup
     wald, local = _wald_and_local(s, sw, Y, poles, fixed)
-    # chi-square quantile with 2 ny + 2 degrees of freedom (scipy.special.chdtri's, without
-    # importing scipy.special)
-    threshold = 2.0 * gamma_q_inverse(Y.shape[1] + 1, DUPLICATE_LEVEL)
+    threshold = float(chdtri(2 * Y.shape[1] + 2, DUPLICATE_LEVEL))
     base = _Problem.make(s, sw, Y, fixed)
     tested = base.off_fixed(_stack(sw[:, None] * _pair_columns(s, poles)))
     for _, a, b in sorted(pairs):
