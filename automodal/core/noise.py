@@ -39,8 +39,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-
-from automodal.core.integer_gamma import gamma_p, gamma_p_inverse
+from scipy.special import gammainc, gammaincinv  # chi-square via the incomplete gamma
 
 __all__ = [
     "AVERAGES_ATTRIBUTES",
@@ -496,12 +495,11 @@ def fit_floor_proportional(
     a, b : ndarray, shape (ny, nu) each, >= 0
     """
     nu_real = 2 * int(dof)
-    # chi-square quantile and cdfs through the regularised incomplete gamma function of
-    # the whole-number shape nu / 2 (what scipy.stats.chi2 evaluates, without importing
-    # scipy.stats or scipy.special on every run)
-    k = nu_real // 2
-    c = 2.0 * gamma_p_inverse(k, 1.0 - trim_probability) / nu_real
-    shrink = gamma_p(k + 1, c * nu_real / 2.0) / gamma_p(k, c * nu_real / 2.0)
+    # chi-square quantile and cdfs through the regularised incomplete gamma function
+    # (what scipy.stats.chi2 evaluates, without its 0.3 s import on every run)
+    c = 2.0 * float(gammaincinv(nu_real / 2.0, 1.0 - trim_probability)) / nu_real
+    shrink = float(gammainc(nu_real / 2.0 + 1.0, c * nu_real / 2.0)
+                   / gammainc(nu_real / 2.0, c * nu_real / 2.0))
     h_avg = _window_average(power, leverage)
     _, ny, nu = local.shape
     A = np.zeros((ny, nu))
