@@ -15,7 +15,13 @@ the structure the chosen modes do not explain) and residual terms for the modes 
 the band. The Gauss-Newton steps use Kaufman's Jacobian (Golub and Pereyra 1973; Kaufman
 1975). The poles' covariance is the larger of the noise model's inverse Fisher information
 and a clustered sandwich (which sees what the noise model misses), with a small-sample
-correction.
+correction. Both treat the fixed pole pairs as what they are, estimates with their own
+uncertainty (nuisance parameters): the information and the scores of the refined poles
+are the efficient ones, with the part a fixed neighbour's pole could explain projected
+out (the Schur complement of the joint information). A refined mode beside a fixed
+neighbour it overlaps with is then as uncertain as the pair's data allow; without it,
+the intervals of modes within three half-bandwidths of another covered 85 % of the true
+values on the calibration seed 252 (isolated modes 93 %).
 
 The weighting is separable: the noise variance of line ``k`` and entry ``e`` is fitted as
 ``v_k c_e`` (a two-way model of its logarithm), so every entry shares one basis; the
@@ -108,8 +114,9 @@ class PoleRefinement:
         ``refined`` is False.
     covariance : ndarray, shape (m, 2, 2)
         Covariance of ``(Re, Im)`` of each pole: the robust sandwich where it exceeds the
-        noise model's inverse Fisher information, else the latter; NaN where ``refined``
-        is False.
+        noise model's inverse Fisher information, else the latter, both with the fixed
+        pole pairs' uncertainty accounted for (see the module's notes); NaN where
+        ``refined`` is False.
     dispersion : ndarray, shape (m,)
         Trace of the robust (line-clustered sandwich) covariance over that of the noise
         model's inverse Fisher information (about 1 when the model and the noise model
@@ -475,7 +482,12 @@ def refine_poles(
     idx = np.flatnonzero(ok)
     cov, disp = nan_cov, np.full(m, np.nan)
     if idx.size:
-        cov[idx], disp[idx] = _covariance(prob, poles[idx])
+        # the held pole pairs were estimated too (by the subspace method): their
+        # uncertainty is the refined poles' own wherever the two are correlated
+        held = np.concatenate([free0[~ok], fixed])
+        pair = held.imag > 1e-9 * np.maximum(np.abs(held), 1e-300)
+        cov[idx], disp[idx] = _covariance(_Problem.make(s, sw, Y, held[~pair]),
+                                          poles[idx], held[pair])
         singular = ~np.all(np.isfinite(cov[idx]), axis=(1, 2)) | (cov[idx, 0, 0] < 0) | (
             cov[idx, 1, 1] < 0)
         ok[idx[singular]] = False
@@ -485,12 +497,35 @@ def refine_poles(
                           iterations=it)
 
 
-def _covariance(prob: _Problem, poles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _covariance(
+    prob: _Problem, poles: np.ndarray, nuisance: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """Covariance ``(m, 2, 2)`` of ``(Re, Im)`` of fitted ``poles`` and their dispersion
-    (see :class:`PoleRefinement`)."""
+    (see :class:`PoleRefinement`).
+
+    ``nuisance`` are poles of the model that ``prob`` does not hold fixed (its fixed part
+    lacks them) although they were not refitted: their own uncertainty is accounted for
+    by the efficient score and information of ``poles`` (the Schur complement)."""
     m = poles.size
-    cost, C, R, Qp = _fit(prob, poles)
-    normal, _ = _normal_equations(prob, poles, C, R, Qp)
+    nuisance = np.zeros(0, complex) if nuisance is None else nuisance
+    both = np.concatenate([poles, nuisance])
+    cost, C, R, Qp = _fit(prob, both)
+    normal, _ = _normal_equations(prob, both, C, R, Qp)
+    # leverage of the linear part per stacked row; residuals corrected for it
+    leverage = np.clip(np.sum(prob.Qf**2, axis=1) + np.sum(Qp**2, axis=1), 0.0, 1.0 - 1e-9)
+    Rc = R / np.sqrt(1.0 - leverage)[:, None]
+    _, PD, Cx = _jacobian_parts(prob, both, C, Qp)
+    # clustered sandwich: the scores of each block of CLUSTER_LINES lines over all their
+    # entries (real and imaginary rows together), so errors correlated across the entries
+    # of a line (an H1 estimate's shared force noise) or between neighbouring lines (a
+    # window's leakage), or not matching the separable model, count as they are
+    score = -(PD * (Rc @ Cx.T))  # (2N, 4M): per row, each derivative column's share
+    score = _block_sums(score.reshape(score.shape[0], -1, 2).sum(axis=2))  # (blocks, 2M)
+    k = 2 * m
+    if nuisance.size:  # efficient score and information of the poles of interest
+        T = normal[:k, k:] @ np.linalg.pinv(normal[k:, k:], rcond=1e-10, hermitian=True)
+        normal = normal[:k, :k] - T @ normal[k:, :k]
+        score = score[:, :k] - score[:, k:] @ T.T
     try:
         info_inv = np.linalg.inv(normal)
     except np.linalg.LinAlgError:
@@ -498,20 +533,10 @@ def _covariance(prob: _Problem, poles: np.ndarray) -> tuple[np.ndarray, np.ndarr
     # each complex whitened residual has E|e|^2 = 1: real and imaginary parts 1/2 each
     cov_free = 0.5 * np.stack([info_inv[2 * i: 2 * i + 2, 2 * i: 2 * i + 2]
                                for i in range(m)])
-    # leverage of the linear part per stacked row; residuals corrected for it
-    leverage = np.clip(np.sum(prob.Qf**2, axis=1) + np.sum(Qp**2, axis=1), 0.0, 1.0 - 1e-9)
-    Rc = R / np.sqrt(1.0 - leverage)[:, None]
-    _, PD, Cx = _jacobian_parts(prob, poles, C, Qp)
-    # clustered sandwich: the scores of each block of CLUSTER_LINES lines over all their
-    # entries (real and imaginary rows together), so errors correlated across the entries
-    # of a line (an H1 estimate's shared force noise) or between neighbouring lines (a
-    # window's leakage), or not matching the separable model, count as they are
-    score = -(PD * (Rc @ Cx.T))  # (2N, 4m): per row, each derivative column's share
-    score = _block_sums(score.reshape(score.shape[0], -1, 2).sum(axis=2))  # (blocks, 2m)
     robust = info_inv @ (score.T @ score) @ info_inv
     # where each pole's information lies, per block: its effective number of blocks (Kish)
     # sets a small-sample correction of the sandwich
-    info = _block_sums(PD**2 * np.sum(Cx**2, axis=1)[None, :])
+    info = _block_sums(PD[:, : 4 * m] ** 2 * np.sum(Cx[: 4 * m] ** 2, axis=1)[None, :])
     info = info.reshape(info.shape[0], -1, 4).sum(axis=2)  # per pole, (blocks, m)
     disp = np.full(m, np.nan)
     cov = np.empty((m, 2, 2))
