@@ -392,10 +392,11 @@ def _identify(
     choice = order.select_orders(p.z, p.Hs, p.line_weights, s.max_order, p.data.source,
                                  variance=p.variance, rank=rank, split_work=split_work)
     if p.variance is not None and choice.rule == "floor":
-        # the whitened residual never fell below the smallest model's: the noise weighting
-        # gives the order test nothing to stand on, so the envelope path runs instead
-        warnings.append("no scanned model fitted the noise-whitened data better than the"
-                        " smallest one: envelope weighting and the misfit-floor order used")
+        # no model is near the data in the noise's terms: the noise weighting gives the
+        # order test nothing to stand on, so the envelope path runs instead
+        warnings.append("no scanned model fitted the noise-whitened data significantly better"
+                        " than the smallest one, which leaves more than the noise: envelope"
+                        " weighting and the misfit-floor order used")
         p = p.enveloped()
         choice = order.select_orders(p.z, p.Hs, p.line_weights, s.max_order, p.data.source,
                                      rank=rank, split_work=split_work)
