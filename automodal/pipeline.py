@@ -353,7 +353,8 @@ def _identify_sub_bands(
     far, ``t0`` when the run started, ``order_of_whole`` the reference order one model of
     the band would have had, ``part`` as in :func:`_identify`."""
     results = [_identify(data, replace(s, band_hz=b.analysed_hz),
-                         within(progress, f"sub-band {i} of {len(plan)}"), part=True)
+                         within(progress, f"sub-band {i} of {len(plan)}"), part=True,
+                         parent_order=order_of_whole)
                for i, b in enumerate(plan, 1)]
     if any(r.shape_channels != results[0].shape_channels for r in results):
         # the data checks dropped different channels in different sub-bands: the shapes
@@ -373,11 +374,37 @@ def _identify_sub_bands(
     return merged
 
 
+def _choose_orders(
+    p: Prepared, s: Settings, rank: int | None, split_work: float | None, warnings: list[str]
+) -> tuple[Prepared, order.OrderChoice]:
+    """The order scan's choice on the noise weighting, or on the envelope weighting when no
+    model is near the data in the noise's terms (the data then prepared for it; the
+    warning said once). ``rank`` and ``split_work`` as for
+    :func:`automodal.core.order.select_orders`."""
+    choice = order.select_orders(p.z, p.Hs, p.line_weights, s.max_order, p.data.source,
+                                 variance=p.variance, rank=rank, split_work=split_work)
+    if p.variance is not None and choice.rule == "floor":
+        # the noise weighting gives the order test nothing to stand on, so the envelope path
+        # runs instead
+        message = ("no scanned model fitted the noise-whitened data significantly better"
+                   " than the smallest one, which leaves more than the noise: envelope"
+                   " weighting and the misfit-floor order used")
+        if message not in warnings:
+            warnings.append(message)
+        p = p.enveloped()
+        choice = order.select_orders(p.z, p.Hs, p.line_weights, s.max_order, p.data.source,
+                                     rank=rank, split_work=split_work)
+    return p, choice
+
+
 def _identify(
-    data: FRFData, s: Settings, progress: ProgressCallback | None, part: bool = False
+    data: FRFData, s: Settings, progress: ProgressCallback | None, part: bool = False,
+    parent_order: int | None = None,
 ) -> Result:
     """:func:`identify` with BLAS limited by the caller (``part``: one sub-band of a split
-    band, whose modes' resolution warnings the merged result gives)."""
+    band, whose modes' resolution warnings the merged result gives; ``parent_order``: the
+    reference order of the band it was split from, which its own must be below for it to be
+    split again)."""
     t0 = time.perf_counter()
     analysis = data.attributes.get("time_analysis")
     warnings: list[str] = [] if part or not isinstance(analysis, dict) else list(
@@ -389,19 +416,15 @@ def _identify(
     rank = None if p.variance is None else whitening.output_rank(p.Hs, p.variance)
     split_work = sub_bands.WORK_LIMIT if s.sub_bands and s.max_order is None else None
     tell(progress, "orders")
-    choice = order.select_orders(p.z, p.Hs, p.line_weights, s.max_order, p.data.source,
-                                 variance=p.variance, rank=rank, split_work=split_work)
-    if p.variance is not None and choice.rule == "floor":
-        # no model is near the data in the noise's terms: the noise weighting gives the
-        # order test nothing to stand on, so the envelope path runs instead
-        warnings.append("no scanned model fitted the noise-whitened data significantly better"
-                        " than the smallest one, which leaves more than the noise: envelope"
-                        " weighting and the misfit-floor order used")
-        p = p.enveloped()
-        choice = order.select_orders(p.z, p.Hs, p.line_weights, s.max_order, p.data.source,
-                                     rank=rank, split_work=split_work)
+    prepared = p
+    p, choice = _choose_orders(prepared, s, rank, split_work, warnings)
     n_bands = 1
-    if s.sub_bands and s.max_order is None:
+    if s.sub_bands and s.max_order is None and (parent_order is None
+                                                 or choice.reference < parent_order):
+        # a part is split again only when splitting made its model smaller: where the order
+        # comes from the noise and the lines rather than the modes (a 9-DOF chain over 51 201
+        # lines: a 0.2 Hz sub-band with one mode still took 112 states), splitting again
+        # only multiplies the scans
         n_bands = sub_bands.sub_band_count(sub_bands.replicate_work(
             *p.Hs.shape, choice.reference, choice.block_rows))
     if n_bands > 1:
@@ -411,6 +434,10 @@ def _identify(
         if len(plan) > 1:  # a sub-band too costly is split again in its own run
             return _identify_sub_bands(data, s, plan, warnings, progress, t0,
                                        choice.reference, part)
+    if split_work is not None and (n_bands > 1 or choice.reference >= (parent_order or 0) > 0):
+        # no split after all: the scan may have ended early, at a stage whose order had not
+        # settled (a 9-DOF chain over 51 201 lines: n0 = 56 there against 36 when scanned on)
+        p, choice = _choose_orders(prepared, s, rank, None, warnings)
     if s.max_order is not None and choice.n0 >= choice.limit:
         warnings.append(
             f"the largest model order {s.max_order} (states, two per mode: at most "

@@ -212,19 +212,19 @@ def timed_min(fn, repeat: int) -> tuple[float, float, object]:
     return min(times), times[0], value
 
 
-ROW = re.compile(r"^\s*(\d+)\s+([0-9.eE+-]+)\s+±\s+\S+\s+\S+\s+±\s+\S+\s+(\S+)\s+(\S+)\s+(\d+)")
+ROW = re.compile(r"^\s*(\d+|-)\s+([0-9.eE+-]+)\s+±\s+\S+\s+\S+\s+±\s+\S+")
 
 
 def physical_frequencies(table: str) -> tuple[list[float], int]:
-    """Frequencies of the rows marked ``physical`` in ``automodal identify``'s table, and the
-    number of rows."""
+    """Frequencies of the physical modes in ``automodal identify``'s table (the rows with a
+    mode number; ``--all`` adds the other clusters with ``-``), and the number of rows."""
     freqs, rows = [], 0
     for line in table.splitlines():
         m = ROW.match(line)
         if not m:
             continue
         rows += 1
-        if m.group(4) == "physical":
+        if m.group(1) != "-":
             freqs.append(float(m.group(2)))
     return freqs, rows
 
