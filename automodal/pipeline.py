@@ -509,10 +509,22 @@ def _replicates(
     """The bootstrap: record replicates when the data have repeated records (and
     ``s.resample`` allows), noise replicates around the reference model's FRF ``H_ref``
     with the noise model, else frequency-line replicates; all their modes stacked."""
+    from automodal.core.noise import mean_as_precise
+
     rng = np.random.default_rng(s.seed)
     records = replicates.band_records(
         p.data.records, p.data.frequency, p.frequency, p.reciprocal, s.resample, p.data.source
     )
+    if records is not None and s.resample == "auto" and p.noise is not None and not (
+            mean_as_precise(records, p.noise_variance)):
+        # averaging resampled records is not the FRF's estimator (H1 of random force
+        # against the mean of ratio records): such replicates are several times noisier
+        # than the FRF and lose its weaker modes
+        warnings.append(
+            f"the {records.shape[0]} repeated records are not resampled: their mean is a"
+            " noisier estimate than the FRF (an H1 estimate, not their mean), so the"
+            " replicates resample as for data without records")
+        records = None
     if records is not None:
         rw = bootstrap.record_weights(records.shape[0], s.n_bootstrap, rng)
         reps = replicates.run_record_replicates(

@@ -145,6 +145,23 @@ def test_ratio_records_of_h1() -> None:
     assert_within(est.variance, sig)
 
 
+@pytest.mark.parametrize("n_rec", [4, 8, 32])
+def test_mean_of_ratio_records_is_not_as_precise_as_h1(n_rec: int) -> None:
+    """The record bootstrap averages records: under random force that is a noisier
+    estimator than H1 (the pipeline then resamples as without records)."""
+    H1, _coh, rec, sig = h1_test(modal_frf(n_in=1), 0.05, n_rec, seed=7 + n_rec)
+    assert not noise.mean_as_precise(rec, sig**2)
+
+
+def test_mean_of_plain_records_is_as_precise() -> None:
+    H = modal_frf(n_in=2)
+    sig = 0.03 * np.abs(H)
+    R = 6
+    rec = H[None] + np.sqrt(R) * sig[None] * cnormal(np.random.default_rng(4), (R, *H.shape))
+    assert noise.mean_as_precise(rec, sig**2)
+    assert not noise.mean_as_precise(rec[:1], sig**2)
+
+
 # ------------------------------------------------------------------------------ coherence
 
 
