@@ -113,6 +113,11 @@ def test_stabilization_diagram_draws_poles_against_order(run):
     np.testing.assert_allclose(xy[:, 1], result.stabilization.order[sel])
     labels = [t for t in ax.texts if t.get_gid() == "mode-label"]
     assert len(labels) == len(report.physical_modes)
+    # the same number as in the table, the shape panels and the AutoMAC: 1..n by frequency
+    assert sorted(t.get_text() for t in labels) == sorted(
+        f"{m.mode_number}: {m.frequency_hz:.4g} Hz" for m in report.physical_modes)
+    assert [m.mode_number for m in report.physical_modes] == list(
+        range(1, len(report.physical_modes) + 1))
     assert any(line.get_gid() == "frf-sum" for a in fig.axes for line in a.lines)
 
 
@@ -136,8 +141,13 @@ def test_automac_matrix(run):
     n = len(report.physical_modes)
     assert m.shape == (n, n)
     np.testing.assert_allclose(np.diag(m), 1.0)
-    assert [t.get_text() for t in ax.get_xticklabels()] == [
-        f"{mode.frequency_hz:.4g}" for mode in report.physical_modes]
+    tags = [f"{k}: {mode.frequency_hz:.4g} Hz" for k, mode in
+            enumerate(sorted(report.physical_modes, key=lambda m: m.frequency_hz), start=1)]
+    assert [t.get_text() for t in ax.get_xticklabels()] == tags
+    assert [t.get_text() for t in ax.get_yticklabels()] == tags
+    assert ax.get_xlabel() == ax.get_ylabel() == "mode: frequency"
+    values = [t for t in ax.texts if t.get_gid() == "mac-value"]
+    assert len(values) == n * n and values[1].get_text() == f"{m[0, 1]:.2f}"
 
 
 def test_frf_fit_says_channels_units_and_error(run):
@@ -157,6 +167,22 @@ def test_frf_fit_says_channels_units_and_error(run):
     assert "receptance" not in fig.axes[0].get_ylabel()
     report.input.quantity = "displacement"
     del report.input.attributes["analysis"]
+
+
+def test_legends_with_long_channel_names_stay_inside_the_figure(run):
+    """Seen on the ModeLAB beam (channels named by their SignalCalc files): a one-row legend
+    ran off the figure and squeezed the axes to half its width."""
+    result, _, report, _ = run
+    f, H, S = result.frf_fit
+    long = copy.deepcopy(report)
+    long.input.output_names = [f"accelerometer_{k}_on_the_left_flange" for k in range(H.shape[1])]
+    fig = plots.frf_fit(long, f, H, S, max_channels=4)
+    fig.canvas.draw()  # the Agg canvas a new Figure gets
+    box = fig.bbox
+    legend = fig.axes[0].get_legend().get_window_extent()
+    assert box.x0 - 1 <= legend.x0 and legend.x1 <= box.x1 + 1
+    assert fig.axes[0].get_window_extent().width > 0.7 * box.width
+    assert len(fig.axes[0].get_legend().get_texts()) == 4 + 2  # channels, measured, synthesized
 
 
 def test_shapes_show_the_spread_and_3d_axes(run):
