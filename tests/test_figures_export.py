@@ -132,6 +132,15 @@ def test_mode_colours_do_not_repeat_after_ten():
     assert len(set(colours)) == 15
 
 
+@pytest.mark.parametrize("n", [12, 20, 40])
+def test_mode_colours_past_ten_read_on_white(n):
+    """Seen on grid_mimo's 12 modes: turbo's yellows made labels like '7: 22.51 Hz'
+    unreadable; no colour may be lighter than tab10's olive."""
+    rgb = np.array([c[:3] for c in plots.mode_colors(n)])
+    luminance = rgb @ np.array([0.2126, 0.7152, 0.0722])
+    assert luminance.max() <= 0.71
+
+
 def test_automac_matrix(run):
     _, _, report, _ = run
     fig = plots.automac(report)
@@ -198,7 +207,8 @@ def test_shapes_show_the_spread_and_3d_axes(run):
     xyz = np.column_stack([np.arange(6.0), np.zeros(6), np.zeros(6)])
     ax = plots.mode_shapes(report, xyz).axes[0]
     assert (ax.get_xlabel(), ax.get_ylabel(), ax.get_zlabel()) == ("x", "y", "z")
-    assert any(t.get_gid() == "shape-scale" for t in ax.texts)
+    scale = next(t for t in ax.texts if t.get_gid() == "shape-scale")
+    assert scale.get_position()[1] == 1.0 and scale.get_va() == "top"  # clear of the x label
 
 
 # ----------------------------------------------------------------------------- export

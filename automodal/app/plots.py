@@ -876,7 +876,8 @@ def _draw_geometry(ax: Any, xyz: np.ndarray, real: np.ndarray, directions: np.nd
     ax.set_xlim(lo[0] - pad, hi[0] + pad)
     ax.set_ylim(lo[1] - pad, hi[1] + pad)
     ax.set_zlim(lo[2] - pad, hi[2] + pad)
-    ax.set_box_aspect(np.maximum(hi - lo + 2 * pad, 0.3 * float(np.max(hi - lo + 2 * pad))))
+    ax.set_box_aspect(np.maximum(hi - lo + 2 * pad, 0.3 * float(np.max(hi - lo + 2 * pad))),
+                      zoom=0.85)  # the axis labels stay within the panel
     ax.set_proj_type("ortho")
     ax.view_init(elev=25, azim=-60)
     for axis, name in ((ax.xaxis, "x"), (ax.yaxis, "y"), (ax.zaxis, "z")):
@@ -887,8 +888,8 @@ def _draw_geometry(ax: Any, xyz: np.ndarray, real: np.ndarray, directions: np.nd
     for axis in (ax.xaxis, ax.yaxis, ax.zaxis):
         axis.set_major_locator(MaxNLocator(4))
     ax.tick_params(labelsize=6, pad=0)
-    ax.text2D(0.0, 0.0, f"shape × {scale:.3g}", transform=ax.transAxes, fontsize=6,
-              color="0.3", gid="shape-scale")
+    ax.text2D(0.0, 1.0, f"shape × {scale:.3g}", transform=ax.transAxes, fontsize=6,
+              color="0.3", va="top", gid="shape-scale")  # clear of the x axis' label
 
 
 def _neighbour_edges(xyz: np.ndarray, max_points: int = 500) -> list[tuple[int, int]]:
@@ -990,13 +991,17 @@ def _cluster_colors(by_cluster: Mapping[int, _Cluster], present: np.ndarray) -> 
 
 
 def mode_colors(n: int) -> list[Any]:
-    """``n`` distinct colours: tab10 up to 10, else ``n`` evenly spaced along the turbo
-    map (its pale ends left out), so that no two modes share a colour."""
+    """``n`` distinct colours: tab10 up to 10, else ``n`` hues evenly spaced around the
+    colour wheel, saturated and dark enough (value 0.75) that a label in the colour reads on
+    white (the yellows and light greens of the turbo map did not), so that no two modes
+    share a colour."""
     from matplotlib import colormaps
+    from matplotlib.colors import hsv_to_rgb
 
     if n <= 10:
         return list(colormaps["tab10"].colors[:n])
-    return [colormaps["turbo"](x) for x in np.linspace(0.05, 0.92, n)]
+    hues = np.linspace(0.0, 0.85, n)
+    return [tuple(hsv_to_rgb((h, 0.9, 0.75))) + (1.0,) for h in hues]
 
 
 def spread_positions(x: np.ndarray, gap: float, lo: float = 0.0, hi: float = 1.0) -> np.ndarray:
