@@ -132,6 +132,31 @@ def test_mode_colours_do_not_repeat_after_ten():
     assert len(set(colours)) == 15
 
 
+def test_physical_mode_colours_are_never_the_grey_of_what_is_not_physical():
+    """Seen on chain8_siso: mode 8 took tab10's grey, the colour of the other clusters."""
+    from matplotlib.colors import to_rgb
+
+    grey = np.array(to_rgb(plots.NON_PHYSICAL_COLOR))
+    for n in (8, 9, 10, 12):
+        rgb = np.array([c[:3] for c in plots.mode_colors(n)])
+        assert np.all(np.ptp(rgb, axis=1) > 0.15), n  # no grey at all
+        assert np.all(np.abs(rgb - grey).max(axis=1) > 0.15), n
+
+
+def test_a_single_channel_shape_is_a_bar_not_a_3d_stem(run):
+    _, _, report, _ = run
+    one = copy.deepcopy(report)
+    for mode in one.modes:
+        mode.shape_real = mode.shape_real[:1]
+        mode.shape_imag = mode.shape_imag[:1]
+        mode.mode_shape_std = mode.mode_shape_std[:1]
+    one.input.output_names = one.input.output_names[:1]
+    fig = plots.mode_shapes(one, np.array([[7.0, 0.0, 0.0]]))
+    ax = fig.axes[0]
+    assert ax.name == "rectilinear"
+    assert [t.get_text() for t in ax.get_xticklabels()] == one.input.output_names[:1]
+
+
 @pytest.mark.parametrize("n", [12, 20, 40])
 def test_mode_colours_past_ten_read_on_white(n):
     """Seen on grid_mimo's 12 modes: turbo's yellows made labels like '7: 22.51 Hz'

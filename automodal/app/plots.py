@@ -432,7 +432,8 @@ def mode_shapes(
         Sensor coordinates (another shape raises ``ValueError``). With coordinates each mode is
         a 3-D view of the sensors displaced by the real part of the shape along their
         directions (``+Z`` when none is known), nearest neighbours joined by lines; without,
-        the real part and the magnitude of the shape are bars by channel.
+        the real part and the magnitude of the shape are bars by channel (so too for a single
+        channel, whose 3-D view would be one stem).
     max_columns : int
         Panels per row.
     fig : Figure or SubFigure, optional
@@ -463,6 +464,7 @@ def mode_shapes(
         n_out = _shape(modes[0]).size
         if xyz.shape != (n_out, 3):
             raise ValueError(f"xyz has shape {xyz.shape}, the shapes need ({n_out}, 3)")
+        geometry = n_out > 1  # one sensor in 3-D says nothing: its bar does
     n_cols = max(1, min(len(modes), max_columns))
     n_rows = max(1, math.ceil(len(modes) / n_cols))
     fig = _canvas(fig, (3.2 * n_cols, 2.8 * n_rows + 0.6))
@@ -991,15 +993,16 @@ def _cluster_colors(by_cluster: Mapping[int, _Cluster], present: np.ndarray) -> 
 
 
 def mode_colors(n: int) -> list[Any]:
-    """``n`` distinct colours: tab10 up to 10, else ``n`` hues evenly spaced around the
-    colour wheel, saturated and dark enough (value 0.75) that a label in the colour reads on
-    white (the yellows and light greens of the turbo map did not), so that no two modes
-    share a colour."""
+    """``n`` distinct colours: tab10 without its grey (the colour of what is not physical)
+    up to 9, else ``n`` hues evenly spaced around the colour wheel, saturated and dark
+    enough (value 0.75) that a label in the colour reads on white (the yellows and light
+    greens of the turbo map did not), so that no two modes share a colour."""
     from matplotlib import colormaps
     from matplotlib.colors import hsv_to_rgb
 
-    if n <= 10:
-        return list(colormaps["tab10"].colors[:n])
+    strong = [c for k, c in enumerate(colormaps["tab10"].colors) if k != 7]
+    if n <= len(strong):
+        return strong[:n]
     hues = np.linspace(0.0, 0.85, n)
     return [tuple(hsv_to_rgb((h, 0.9, 0.75))) + (1.0,) for h in hues]
 
