@@ -113,6 +113,11 @@ def test_stabilization_diagram_draws_poles_against_order(run):
     np.testing.assert_allclose(xy[:, 1], result.stabilization.order[sel])
     labels = [t for t in ax.texts if t.get_gid() == "mode-label"]
     assert len(labels) == len(report.physical_modes)
+    # the same number as in the table, the shape panels and the AutoMAC: 1..n by frequency
+    assert sorted(t.get_text() for t in labels) == sorted(
+        f"{m.mode_number}: {m.frequency_hz:.4g} Hz" for m in report.physical_modes)
+    assert [m.mode_number for m in report.physical_modes] == list(
+        range(1, len(report.physical_modes) + 1))
     assert any(line.get_gid() == "frf-sum" for a in fig.axes for line in a.lines)
 
 
@@ -127,6 +132,40 @@ def test_mode_colours_do_not_repeat_after_ten():
     assert len(set(colours)) == 15
 
 
+def test_physical_mode_colours_are_never_the_grey_of_what_is_not_physical():
+    """Seen on chain8_siso: mode 8 took tab10's grey, the colour of the other clusters."""
+    from matplotlib.colors import to_rgb
+
+    grey = np.array(to_rgb(plots.NON_PHYSICAL_COLOR))
+    for n in (8, 9, 10, 12):
+        rgb = np.array([c[:3] for c in plots.mode_colors(n)])
+        assert np.all(np.ptp(rgb, axis=1) > 0.15), n  # no grey at all
+        assert np.all(np.abs(rgb - grey).max(axis=1) > 0.15), n
+
+
+def test_a_single_channel_shape_is_a_bar_not_a_3d_stem(run):
+    _, _, report, _ = run
+    one = copy.deepcopy(report)
+    for mode in one.modes:
+        mode.shape_real = mode.shape_real[:1]
+        mode.shape_imag = mode.shape_imag[:1]
+        mode.mode_shape_std = mode.mode_shape_std[:1]
+    one.input.output_names = one.input.output_names[:1]
+    fig = plots.mode_shapes(one, np.array([[7.0, 0.0, 0.0]]))
+    ax = fig.axes[0]
+    assert ax.name == "rectilinear"
+    assert [t.get_text() for t in ax.get_xticklabels()] == one.input.output_names[:1]
+
+
+@pytest.mark.parametrize("n", [12, 20, 40])
+def test_mode_colours_past_ten_read_on_white(n):
+    """Seen on grid_mimo's 12 modes: turbo's yellows made labels like '7: 22.51 Hz'
+    unreadable; no colour may be lighter than tab10's olive."""
+    rgb = np.array([c[:3] for c in plots.mode_colors(n)])
+    luminance = rgb @ np.array([0.2126, 0.7152, 0.0722])
+    assert luminance.max() <= 0.71
+
+
 def test_automac_matrix(run):
     _, _, report, _ = run
     fig = plots.automac(report)
@@ -136,8 +175,13 @@ def test_automac_matrix(run):
     n = len(report.physical_modes)
     assert m.shape == (n, n)
     np.testing.assert_allclose(np.diag(m), 1.0)
-    assert [t.get_text() for t in ax.get_xticklabels()] == [
-        f"{mode.frequency_hz:.4g}" for mode in report.physical_modes]
+    tags = [f"{k}: {mode.frequency_hz:.4g} Hz" for k, mode in
+            enumerate(sorted(report.physical_modes, key=lambda m: m.frequency_hz), start=1)]
+    assert [t.get_text() for t in ax.get_xticklabels()] == tags
+    assert [t.get_text() for t in ax.get_yticklabels()] == tags
+    assert ax.get_xlabel() == ax.get_ylabel() == "mode: frequency"
+    values = [t for t in ax.texts if t.get_gid() == "mac-value"]
+    assert len(values) == n * n and values[1].get_text() == f"{m[0, 1]:.2f}"
 
 
 def test_frf_fit_says_channels_units_and_error(run):
@@ -159,6 +203,22 @@ def test_frf_fit_says_channels_units_and_error(run):
     del report.input.attributes["analysis"]
 
 
+def test_legends_with_long_channel_names_stay_inside_the_figure(run):
+    """Seen on the ModeLAB beam (channels named by their SignalCalc files): a one-row legend
+    ran off the figure and squeezed the axes to half its width."""
+    result, _, report, _ = run
+    f, H, S = result.frf_fit
+    long = copy.deepcopy(report)
+    long.input.output_names = [f"accelerometer_{k}_on_the_left_flange" for k in range(H.shape[1])]
+    fig = plots.frf_fit(long, f, H, S, max_channels=4)
+    fig.canvas.draw()  # the Agg canvas a new Figure gets
+    box = fig.bbox
+    legend = fig.axes[0].get_legend().get_window_extent()
+    assert box.x0 - 1 <= legend.x0 and legend.x1 <= box.x1 + 1
+    assert fig.axes[0].get_window_extent().width > 0.7 * box.width
+    assert len(fig.axes[0].get_legend().get_texts()) == 4 + 2  # channels, measured, synthesized
+
+
 def test_shapes_show_the_spread_and_3d_axes(run):
     _, _, report, _ = run
     plain = copy.deepcopy(report)
@@ -172,7 +232,8 @@ def test_shapes_show_the_spread_and_3d_axes(run):
     xyz = np.column_stack([np.arange(6.0), np.zeros(6), np.zeros(6)])
     ax = plots.mode_shapes(report, xyz).axes[0]
     assert (ax.get_xlabel(), ax.get_ylabel(), ax.get_zlabel()) == ("x", "y", "z")
-    assert any(t.get_gid() == "shape-scale" for t in ax.texts)
+    scale = next(t for t in ax.texts if t.get_gid() == "shape-scale")
+    assert scale.get_position()[1] == 1.0 and scale.get_va() == "top"  # clear of the x label
 
 
 # ----------------------------------------------------------------------------- export

@@ -399,7 +399,7 @@ def test_csv_refusals(tmp_path, text, words):
 def test_csv_refuses_binary_file(tmp_path):
     path = tmp_path / "bin.csv"
     path.write_bytes(b"\xff\xfe\x00\x81binary")
-    refused(read_csv, path, "not a UTF-8 text file")
+    refused(read_csv, path, "not a text file (UTF-8 or Latin-1)")
 
 
 # ------------------------------------------------------------------------------- NPZ

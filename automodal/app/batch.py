@@ -34,7 +34,8 @@ from automodal.app.run import check_jobs, is_batch_input, run_file
 from automodal.errors import InputError
 from automodal.io.atomic import atomic_path
 from automodal.io.json_safe import json_safe
-from automodal.io.readers import READERS
+from automodal.io.readers import READERS, reader_suffix
+from automodal.io.tabular import holds_number_rows
 from automodal.report_model import Report, utc_now
 from automodal.settings import Settings
 from automodal.tracking import Thresholds
@@ -158,7 +159,8 @@ class BatchResult:
 # ------------------------------------------------------------------------------ inputs
 
 
-def expand_inputs(spec: str, exclude: str | os.PathLike[str] | None = None) -> list[Path]:
+def expand_inputs(spec: str, exclude: str | os.PathLike[str] | None = None,
+                  left_out: list[Path] | None = None) -> list[Path]:
     """The input files of a batch, sorted by name.
 
     Parameters
@@ -166,9 +168,14 @@ def expand_inputs(spec: str, exclude: str | os.PathLike[str] | None = None) -> l
     spec : str
         A folder (its files whose suffix has a reader, see
         :data:`automodal.io.readers.READERS`; not recursive, hidden files left out) or a
-        glob pattern (every file it matches; ``**`` recurses).
+        glob pattern (every file it matches; ``**`` recurses). Text files (``.txt``,
+        ``.csv``, ``.tsv``, also gzipped) in which no line is a row of numbers, such as a
+        ``readme.txt`` beside the data, are no inputs
+        (:func:`automodal.io.tabular.holds_number_rows`).
     exclude : path-like, optional
         A folder whose files are never inputs (the output folder).
+    left_out : list of Path, optional
+        Receives the text files left out for holding no numbers (to be said to the user).
 
     Returns
     -------
@@ -181,7 +188,7 @@ def expand_inputs(spec: str, exclude: str | os.PathLike[str] | None = None) -> l
     """
     p = Path(spec)
     if p.is_dir():
-        found = [f for f in p.iterdir() if f.suffix.lower() in READERS]
+        found = [f for f in p.iterdir() if reader_suffix(f) in READERS]
     elif glob.has_magic(spec):
         found = [Path(f) for f in glob.glob(spec, recursive=True)]
     else:
@@ -192,7 +199,11 @@ def expand_inputs(spec: str, exclude: str | os.PathLike[str] | None = None) -> l
         if f.is_file() and not f.name.startswith(".")
         and (skip is None or f.resolve().parent != skip)
     ]
-    return sorted(files, key=lambda f: str(f))
+    prose = [f for f in files if READERS.get(reader_suffix(f)) == READERS[".txt"]
+             and not holds_number_rows(f)]
+    if left_out is not None:
+        left_out.extend(sorted(prose, key=lambda f: str(f)))
+    return sorted((f for f in files if f not in prose), key=lambda f: str(f))
 
 
 def report_stems(files: Sequence[Path]) -> list[str | None]:

@@ -143,8 +143,7 @@ def pole_map(
     parts = _frf_parts(frf)
     if parts is not None:
         handles.append(_draw_frf_sum(ax, parts[0], parts[1]))
-    ax.legend(handles=handles, loc="lower left", bbox_to_anchor=(0.0, 1.0), ncol=len(handles),
-              frameon=False, fontsize=8, borderaxespad=0.2)
+    _top_legend(ax, fig, handles)
     summary = report.summary
     n_trash = int(np.count_nonzero(trash))
     fig.suptitle(
@@ -229,8 +228,7 @@ def stabilization_diagram(
     parts = _frf_parts(frf)
     if parts is not None:
         handles.append(_draw_frf_sum(ax, parts[0], parts[1]))
-    ax.legend(handles=handles, loc="lower left", bbox_to_anchor=(0.0, 1.0),
-              ncol=min(len(handles), 3), frameon=False, fontsize=8, borderaxespad=0.2)
+    _top_legend(ax, fig, handles, max_columns=3)
     n_stable = int(np.count_nonzero(flags == st.STABLE_ALL))
     fig.suptitle(
         f"Stabilization diagram: {order.size} poles of {np.unique(order).size} model orders,"
@@ -270,11 +268,11 @@ def automac(report: ReportLike, *, fig: Figure | SubFigure | None = None
     shapes = np.column_stack([_shape(m) for m in modes])
     matrix = np.real(mac(shapes, shapes))
     image = ax.imshow(matrix, vmin=0.0, vmax=1.0, cmap="Blues", gid="automac")
-    ticks = [f"{m.frequency_hz:.4g}" for m in modes]
+    ticks = [_mode_tag(m) for m in modes]
     ax.set_xticks(range(n), ticks, rotation=90, fontsize=7)
     ax.set_yticks(range(n), ticks, fontsize=7)
-    ax.set_xlabel("mode (Hz)")
-    ax.set_ylabel("mode (Hz)")
+    ax.set_xlabel("mode: frequency")
+    ax.set_ylabel("mode: frequency")
     if n <= 25:
         for i in range(n):
             for j in range(n):
@@ -328,8 +326,9 @@ def frf_fit(
     outputs, inputs = _channel_names(report, H.shape[1], H.shape[2])
     error = _fit_error(report, H, S)
     shown = _strongest_channels(H, max_channels)
+    colors = mode_colors(len(shown))
     for k, (i, j) in enumerate(shown):
-        color = f"C{k}"
+        color = colors[k]
         name = f"{outputs[i]}/{inputs[j]}" if H.shape[2] > 1 else outputs[i]
         if error is not None and np.isfinite(error[i, j]):
             name += f" (error {_pct_value(error[i, j])})"
@@ -352,8 +351,7 @@ def frf_fit(
         ax_ph.set_xlim(f[0], f[-1])
     handles, _ = ax_mag.get_legend_handles_labels()
     handles += _style_handles(S is not None)
-    ax_mag.legend(handles=handles, loc="lower left", bbox_to_anchor=(0.0, 1.0),
-                  ncol=min(len(handles), 6), frameon=False, fontsize=8, borderaxespad=0.2)
+    _top_legend(ax_mag, fig, handles)
     what = ("measured (solid) and synthesized from the physical modes with upper and lower"
             " residuals (dashed)" if S is not None else "measured")
     n_all = H.shape[1] * H.shape[2]
@@ -404,14 +402,14 @@ def physicalness_bars(
                     elinewidth=1.0, capsize=2, gid=f"ci-{label.replace(' ', '-')}")
     ax.axhline(threshold, color="tab:red", ls="--", lw=1.0, label=f"threshold {threshold:g}")
     ax.set_xlim(lo, hi)
-    ax.set_ylim(0.0, 1.08)
+    ax.set_ylim(-0.04, 1.08)  # clusters of physicalness 0 stay visible as dots
+    ax.axhline(0.0, color="0.6", lw=0.5, zorder=0)
     ax.set_xlabel("frequency (Hz); horizontal bars: 95 % interval")
     ax.set_ylabel("physicalness")
     if not modes:
         ax.text(0.5, 0.5, "no cluster survived", ha="center", va="center",
                 transform=ax.transAxes)
-    ax.legend(loc="lower left", bbox_to_anchor=(0.0, 1.0), ncol=3, frameon=False, fontsize=8,
-              borderaxespad=0.2)
+    _top_legend(ax, fig, ax.get_legend_handles_labels()[0], max_columns=3)
     fig.suptitle("Physicalness of every cluster", fontsize=10)
     return fig
 
@@ -434,7 +432,8 @@ def mode_shapes(
         Sensor coordinates (another shape raises ``ValueError``). With coordinates each mode is
         a 3-D view of the sensors displaced by the real part of the shape along their
         directions (``+Z`` when none is known), nearest neighbours joined by lines; without,
-        the real part and the magnitude of the shape are bars by channel.
+        the real part and the magnitude of the shape are bars by channel (so too for a single
+        channel, whose 3-D view would be one stem).
     max_columns : int
         Panels per row.
     fig : Figure or SubFigure, optional
@@ -465,6 +464,7 @@ def mode_shapes(
         n_out = _shape(modes[0]).size
         if xyz.shape != (n_out, 3):
             raise ValueError(f"xyz has shape {xyz.shape}, the shapes need ({n_out}, 3)")
+        geometry = n_out > 1  # one sensor in 3-D says nothing: its bar does
     n_cols = max(1, min(len(modes), max_columns))
     n_rows = max(1, math.ceil(len(modes) / n_cols))
     fig = _canvas(fig, (3.2 * n_cols, 2.8 * n_rows + 0.6))
@@ -577,8 +577,9 @@ def trend(history: History, *, fig: Figure | SubFigure | None = None) -> Figure 
     ax_f, ax_d = fig.subplots(2, 1, sharex=True)
     x, x_label = _trend_axis(history, ax_d)
     flagged_label, missing_label = "flagged", "missing"
+    colors = mode_colors(history.n_modes)
     for m in range(history.n_modes):
-        color = f"C{m % 10}"
+        color = colors[m]
         fb = float(history.baseline_frequency_hz[m])
         rel = 100.0 * (history.frequency_hz[:, m] - fb) / fb
         band = 100.0 * (history.frequency_ci95_hz[:, m, :] - fb) / fb
@@ -612,9 +613,8 @@ def trend(history: History, *, fig: Figure | SubFigure | None = None) -> Figure 
     handles, labels = ax_f.get_legend_handles_labels()
     order = sorted(range(len(labels)), key=lambda k: labels[k] in ("flagged", "missing"))
     if handles:
-        ax_f.legend([handles[k] for k in order], [labels[k] for k in order], loc="lower left",
-                    bbox_to_anchor=(0.0, 1.0), ncol=min(len(handles), 5), frameon=False,
-                    fontsize=8, borderaxespad=0.2)
+        _top_legend(ax_f, fig, [handles[k] for k in order], [labels[k] for k in order],
+                    max_columns=5)
     n_flagged = int(np.sum(history.flagged))
     fig.suptitle(f"Modes over time against {Path(history.baseline_label).name}: "
                  f"{n_flagged} of {history.n_times} tests flagged", fontsize=10)
@@ -739,6 +739,22 @@ def _canvas(fig: Figure | SubFigure | None, size: tuple[float, float]) -> Figure
     return Figure(figsize=size, layout="constrained")
 
 
+def _top_legend(ax: Axes, fig: Figure | SubFigure, handles: list[Any],
+                labels: list[str] | None = None, max_columns: int = 6,
+                fontsize: float = 8.0) -> None:
+    """A frameless legend above ``ax`` in as many columns as fit the figure's width (long
+    channel names wrap onto more rows instead of running off the figure)."""
+    if labels is None:
+        labels = [h.get_label() for h in handles]
+    if not handles:
+        return
+    width_pt = fig.bbox.width / fig.dpi * 72.0 * 0.92
+    entry_pt = (max(len(t) for t in labels) + 5.0) * 0.58 * fontsize  # text and marker
+    ncol = int(max(1, min(len(handles), max_columns, width_pt // max(entry_pt, 1.0))))
+    ax.legend(handles, labels, loc="lower left", bbox_to_anchor=(0.0, 1.0), ncol=ncol,
+              frameon=False, fontsize=fontsize, borderaxespad=0.2)
+
+
 def _draw_frf_sum(ax: Axes, frequency: np.ndarray, H: np.ndarray) -> Any:
     """The FRF magnitude summed over channels on a log twin axis behind ``ax``'s artists."""
     twin = ax.twinx()
@@ -788,7 +804,7 @@ def _label_modes(ax: Axes, fig: Figure | SubFigure, modes: list[ReportMode],
         color = colors[k]
         ax.axvline(f[k], color=color, lw=0.6, ls=":", zorder=0)
         ax.annotate(
-            _hz(f[k]), xy=(f[k], 0.78), xycoords=ax.get_xaxis_transform(),
+            _mode_tag(modes[k]), xy=(f[k], 0.78), xycoords=ax.get_xaxis_transform(),
             xytext=(x, 0.985), textcoords="axes fraction", color=color, rotation=90,
             ha="center", va="top", fontsize=LABEL_FONT, gid="mode-label",
             bbox={"boxstyle": "square,pad=0.1", "fc": "white", "ec": "none", "alpha": 0.8},
@@ -862,7 +878,8 @@ def _draw_geometry(ax: Any, xyz: np.ndarray, real: np.ndarray, directions: np.nd
     ax.set_xlim(lo[0] - pad, hi[0] + pad)
     ax.set_ylim(lo[1] - pad, hi[1] + pad)
     ax.set_zlim(lo[2] - pad, hi[2] + pad)
-    ax.set_box_aspect(np.maximum(hi - lo + 2 * pad, 0.3 * float(np.max(hi - lo + 2 * pad))))
+    ax.set_box_aspect(np.maximum(hi - lo + 2 * pad, 0.3 * float(np.max(hi - lo + 2 * pad))),
+                      zoom=0.85)  # the axis labels stay within the panel
     ax.set_proj_type("ortho")
     ax.view_init(elev=25, azim=-60)
     for axis, name in ((ax.xaxis, "x"), (ax.yaxis, "y"), (ax.zaxis, "z")):
@@ -873,8 +890,8 @@ def _draw_geometry(ax: Any, xyz: np.ndarray, real: np.ndarray, directions: np.nd
     for axis in (ax.xaxis, ax.yaxis, ax.zaxis):
         axis.set_major_locator(MaxNLocator(4))
     ax.tick_params(labelsize=6, pad=0)
-    ax.text2D(0.0, 0.0, f"shape × {scale:.3g}", transform=ax.transAxes, fontsize=6,
-              color="0.3", gid="shape-scale")
+    ax.text2D(0.0, 1.0, f"shape × {scale:.3g}", transform=ax.transAxes, fontsize=6,
+              color="0.3", va="top", gid="shape-scale")  # clear of the x axis' label
 
 
 def _neighbour_edges(xyz: np.ndarray, max_points: int = 500) -> list[tuple[int, int]]:
@@ -976,13 +993,18 @@ def _cluster_colors(by_cluster: Mapping[int, _Cluster], present: np.ndarray) -> 
 
 
 def mode_colors(n: int) -> list[Any]:
-    """``n`` distinct colours: tab10 up to 10, else ``n`` evenly spaced along the turbo
-    map (its pale ends left out), so that no two modes share a colour."""
+    """``n`` distinct colours: tab10 without its grey (the colour of what is not physical)
+    up to 9, else ``n`` hues evenly spaced around the colour wheel, saturated and dark
+    enough (value 0.75) that a label in the colour reads on white (the yellows and light
+    greens of the turbo map did not), so that no two modes share a colour."""
     from matplotlib import colormaps
+    from matplotlib.colors import hsv_to_rgb
 
-    if n <= 10:
-        return list(colormaps["tab10"].colors[:n])
-    return [colormaps["turbo"](x) for x in np.linspace(0.05, 0.92, n)]
+    strong = [c for k, c in enumerate(colormaps["tab10"].colors) if k != 7]
+    if n <= len(strong):
+        return strong[:n]
+    hues = np.linspace(0.0, 0.85, n)
+    return [tuple(hsv_to_rgb((h, 0.9, 0.75))) + (1.0,) for h in hues]
 
 
 def spread_positions(x: np.ndarray, gap: float, lo: float = 0.0, hi: float = 1.0) -> np.ndarray:
@@ -1115,6 +1137,13 @@ def _fit_error(report: Report, H: np.ndarray, S: np.ndarray | None) -> np.ndarra
 def _pct(x: float) -> str:
     """A fraction as a percentage, e.g. ``1 %``."""
     return f"{100 * x:g} %"
+
+
+def _mode_tag(mode: ReportMode) -> str:
+    """A physical mode's label in every figure: its number and frequency, ``3: 596.4 Hz``
+    (the frequency alone for a mode without a number)."""
+    number = mode.mode_number
+    return _hz(mode.frequency_hz) if number is None else f"{number}: {_hz(mode.frequency_hz)}"
 
 
 def _hz(f: float) -> str:

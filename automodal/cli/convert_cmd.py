@@ -57,29 +57,38 @@ Examples:
   automodal convert measurement.uff measurement.h5
   automodal convert frfs.csv test.h5 --quiet
   automodal convert beam.uff beam.h5 --geometry nodes.csv --test-date 2024-05-01
-  automodal convert hits.npy test.h5 --sample-rate 25600 --forces 1""",
+  automodal convert hits.npy test.h5 --sample-rate 25600 --forces 1
+  automodal convert Hxysv*.txt.gz beam.h5 --stack inputs""",
 )
-@click.argument("input_path", metavar="INPUT", type=click.Path())
+@click.argument("input_paths", metavar="INPUT...", nargs=-1, required=True, type=click.Path())
 @click.argument("output", metavar="OUTPUT.h5", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("--geometry", metavar="FILE", type=click.Path(),
               help="Node coordinates and channel nodes/directions (CSV, or UFF/UNV datasets"
                    " 15/2411: docs/cli.md, 'Geometry'): written as the outputs' nodes,"
                    " directions and xyz.")
+@click.option("--stack", type=click.Choice(["inputs", "outputs"]), default=None,
+              help="Several INPUT files of FRFs make one test: each file's FRFs become"
+                   " further inputs (one file per hammer point) or outputs (one file per"
+                   " sensor position), in the order given. Needed with more than one INPUT.")
 @test_date_option
 @click.option("-q", "--quiet", is_flag=True, help="Print nothing on success.")
 @time_input_options
 @debug_option
-def convert(input_path: str, output: Path, geometry: str | None, test_date: str | None,
-            quiet: bool, sample_rate: float | None, forces: str | None, quantity: str | None,
+def convert(input_paths: tuple[str, ...], output: Path, geometry: str | None,
+            stack: str | None, test_date: str | None, quiet: bool, sample_rate: float | None, forces: str | None, quantity: str | None,
             debug: bool) -> None:
     """Convert INPUT to an automodal FRF file OUTPUT.h5 (docs/frf-file.md).
 
     INPUT is a UFF/UNV file with dataset 58 FRFs (.uff, .unv), a CSV or text table
-    (.csv, .txt: frequency, then real/imaginary column pairs, one input), a NumPy archive
+    (.csv, .txt, also gzipped, .txt.gz; UTF-8 or Latin-1: frequency, then real/imaginary
+    column pairs, one input; title and unit lines before the column names are left out,
+    as in SignalCalc exports), a NumPy archive
     (.npz: keys frequency and frf) or an FRF file (.h5); or time records (docs/time-input.md:
     .npy, .npz, .csv/.tsv/.txt, .mat, .tdms, .uff, .h5), whose FRFs are written with the
     records themselves in the /time group (sample rate and forces as --sample-rate and
-    --forces said), so that OUTPUT can be identified again without the options. OUTPUT is
+    --forces said), so that OUTPUT can be identified again without the options. Several
+    INPUT files of FRFs (one per hammer point or per sensor position) make one test with
+    --stack inputs or --stack outputs. OUTPUT is
     written atomically: it is replaced only once complete. Prints one summary line unless
     --quiet.
     """
@@ -88,15 +97,24 @@ def convert(input_path: str, output: Path, geometry: str | None, test_date: str 
         if output.suffix.lower() not in OUTPUT_SUFFIXES:
             raise InputError("the output must be an FRF file with suffix .h5 or .hdf5", output)
         check_output_folder(output, "FRF file")
-        if Path(input_path).is_dir():
-            raise InputError("is a folder, not an input file", input_path)
+        for input_path in input_paths:
+            if Path(input_path).is_dir():
+                raise InputError("is a folder, not an input file", input_path)
+        if len(input_paths) > 1 and stack is None:
+            raise InputError(f"{len(input_paths)} input files: say how they make one test, "
+                             "--stack inputs (one file per hammer point) or --stack outputs "
+                             "(one file per sensor position)")
         from automodal.app.run import time_options
         from automodal.io.frf_file import write_frf
         from automodal.io.readers import read_any
         from automodal.pipeline import input_stage
         from automodal.timedata import TimeSeries
 
-        read = read_any(input_path, time_options(sample_rate, forces, quantity))
+        options = time_options(sample_rate, forces, quantity)
+        if len(input_paths) > 1:
+            read = _stacked_files(input_paths, stack or "inputs", options)
+        else:
+            read = read_any(input_paths[0], options)
         data = input_stage(read)  # the FRFs identify would analyse (output-only: 2 passes)
         if geometry:
             from automodal.io.geometry import apply_to_data, read_geometry
@@ -111,3 +129,20 @@ def convert(input_path: str, output: Path, geometry: str | None, test_date: str 
         write_frf(output, data, time=read if isinstance(read, TimeSeries) else None)
         if not quiet:
             click.echo(summary(output, data))
+
+
+def _stacked_files(paths: tuple[str, ...], along: str, options: object) -> FRFData:
+    """The FRFs of several files as one test (:func:`automodal.io.stacking.stack_frfs`);
+    time records are refused (each is a test of its own)."""
+    from automodal.frfdata import FRFData
+    from automodal.io.readers import read_any
+    from automodal.io.stacking import stack_frfs
+
+    parts = []
+    for path in paths:
+        read = read_any(path, options)  # type: ignore[arg-type]
+        if not isinstance(read, FRFData):
+            raise InputError("holds time records; only files of FRFs are stacked (convert "
+                             "time records one file at a time)", path)
+        parts.append(read)
+    return stack_frfs(parts, along)

@@ -98,10 +98,15 @@ def _run_batch(input_path: str, outputs: tuple[str, ...], settings: Settings,
     from automodal.app.batch import expand_inputs, run_batch
 
     outdir = _batch_outdir(outputs)
-    files = expand_inputs(input_path, exclude=outdir)
+    prose: list[Path] = []
+    files = expand_inputs(input_path, exclude=outdir, left_out=prose)
     if not files:
-        raise InputError("no input file found", input_path)
+        raise InputError("no input file found" + (f" ({len(prose)} text file(s) without a "
+                         "row of numbers left out)" if prose else ""), input_path)
     talk = not (quiet or as_json)
+    if prose and not quiet:
+        click.echo(f"automodal: note: left out {len(prose)} text file(s) without a row of "
+                   f"numbers: {', '.join(f.name for f in prose)}", err=True)
 
     def show(outcome: FileOutcome) -> None:
         if outcome.status == "failed":

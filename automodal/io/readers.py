@@ -59,7 +59,7 @@ if TYPE_CHECKING:  # annotations only: the readers import what they return
     from automodal.io.channels import Channels, TimeOptions
     from automodal.timedata import TimeSeries
 
-__all__ = ["READERS", "READ_TIMEOUT_S", "read_any", "read_hdf5"]
+__all__ = ["READERS", "READ_TIMEOUT_S", "read_any", "read_hdf5", "reader_suffix"]
 
 READ_TIMEOUT_S = 120.0
 """Longest time one file may take to read, in seconds (the environment variable
@@ -78,8 +78,32 @@ READERS: dict[str, tuple[str, str]] = {
     ".npy": ("automodal.io.numpy_files", "read_npy"),
     ".mat": ("automodal.io.matlab", "read_mat"),
     ".tdms": ("automodal.io.tdms", "read_tdms"),
+    ".csv.gz": ("automodal.io.tabular", "read_table"),
+    ".tsv.gz": ("automodal.io.tabular", "read_table"),
+    ".txt.gz": ("automodal.io.tabular", "read_table"),
 }
-"""Suffix (lower case) -> (module, function) of the reader used for it."""
+"""Suffix (lower case) -> (module, function) of the reader used for it; text tables may be
+gzipped (``.txt.gz``), as acquisition software exports are often kept."""
+
+
+def reader_suffix(path: str | os.PathLike[str]) -> str:
+    """The suffix that chooses a file's reader: the last one in lower case, or the last two
+    for a gzipped file (``.txt.gz``).
+
+    Parameters
+    ----------
+    path : str or path-like
+        The file's name or path.
+
+    Returns
+    -------
+    str
+        A key of :data:`READERS` when the file has a reader.
+    """
+    suffixes = [x.lower() for x in Path(path).suffixes]
+    if len(suffixes) >= 2 and suffixes[-1] == ".gz":
+        return "".join(suffixes[-2:])
+    return suffixes[-1] if suffixes else ""
 
 _TAKE_OPTIONS = frozenset({("automodal.io.tabular", "read_table")})
 """Readers that need the options to tell what the file holds (a table's header of channel
@@ -130,7 +154,7 @@ def _read_by_suffix(path: str | os.PathLike[str],
     samples with the options."""
     source = str(path)
     p = Path(path)
-    target = READERS.get(p.suffix.lower())
+    target = READERS.get(reader_suffix(p))
     if target is None:
         from automodal.io.hdf5 import has_hdf5_signature
 
@@ -159,7 +183,7 @@ def _completed(read: FRFData | TimeSeries | Channels, options: TimeOptions | Non
     if given:
         hint = (" (a table is read as samples when its header names a time column 't' or "
                 "'time', or names channels and --sample-rate is given)"
-                if Path(source).suffix.lower() in (".csv", ".tsv", ".txt") else "")
+                if READERS.get(reader_suffix(source)) == READERS[".txt"] else "")
         raise InputError(f"{', '.join(given)} describe time series, but the file holds FRFs"
                          f"{hint}", source)
     return read

@@ -26,9 +26,11 @@ NPZ layout (:func:`read_npz`): ``frequency`` (1-D, Hz), ``frf`` (complex, shape
 
 from __future__ import annotations
 
+import gzip
 import math
 import os
 import re
+import zlib
 from collections.abc import Sequence
 from pathlib import Path
 from tokenize import TokenError
@@ -39,11 +41,16 @@ import numpy as np
 from automodal.errors import InputError
 from automodal.frfdata import QUANTITIES, FRFData, quantity_problem
 from automodal.io.channels import Channels, TimeOptions, rate_from_time, time_axis, time_unit
-from automodal.io.limits import check_not_real_valued, check_size, check_text_size
+from automodal.io.limits import (
+    MAX_TEXT_BYTES,
+    check_not_real_valued,
+    check_size,
+    check_text_size,
+)
 from automodal.io.refusal import describe, read_refusing
 
-__all__ = ["NPZ_KEYS", "NPZ_LAYOUT", "npy_shape", "npz_frfdata", "npz_members", "read_csv",
-           "read_npz", "read_table"]
+__all__ = ["NPZ_KEYS", "NPZ_LAYOUT", "holds_number_rows", "is_gzip_name", "npy_shape",
+           "npz_frfdata", "npz_members", "read_csv", "read_npz", "read_table"]
 
 _QUANTITY_LINE = re.compile(r"^#\s*quantity\s*[:=]\s*(\S+)\s*$", re.IGNORECASE)
 _REAL_WRAPPED = re.compile(r"^re(al)?\s*[(\[](.*)[)\]]$", re.IGNORECASE)
@@ -154,13 +161,17 @@ def _read_table(path: Path, source: str, options: TimeOptions | None) -> FRFData
             rows.append((number, line))
     if not rows:
         raise InputError(f"no data rows; {_CSV_LAYOUT}", source)
-    comma = "," in rows[0][1]
+    preamble, rows = _preamble(rows)
+    if not rows and len(preamble) > 1:  # no line of numbers: say which line is not one
+        _number_table([(n, _split(line, "," in line)) for n, line in preamble[1:]], source)
+    comma = "," in rows[0][1] if rows else "," in preamble[-1][1]
     cells = [(n, _split(line, comma)) for n, line in rows]
-    header = None
-    if not _numeric(cells[0][1]):
-        header = _split_header(rows[0][1], comma)
-        cells = cells[1:]
+    header = _header_of(preamble, cells, comma)
     table = _number_table(cells, source)
+    if stated is None:
+        units = _quantity_from_units(preamble)
+        if units is not None:
+            quantity, quantity_source = units
     n_cols = table.shape[1]
     if header is not None and len(header) != n_cols:
         raise InputError(f"the header has {len(header)} columns but the rows have {n_cols}",
@@ -180,6 +191,9 @@ def _read_table(path: Path, source: str, options: TimeOptions | None) -> FRFData
                    attributes={"source_format": "CSV table", "quantity_source": quantity_source,
                                "csv_columns": layout},
                    source=source)
+    if len(preamble) > 1:
+        data.attributes["csv_preamble"] = (f"{len(preamble) - (header is not None)} line(s) "
+                                           "before the data left out")
     check_not_real_valued(data.frf, source)
     return data
 
@@ -222,14 +236,125 @@ def _samples_table(table: np.ndarray, header: list[str], quantity: str | None) -
 
 
 def _read_text(path: Path, source: str) -> str:
-    """The file as UTF-8 text (a leading byte-order mark removed)."""
+    """The file as text: UTF-8 (a leading byte-order mark removed), else Latin-1 (what
+    Windows acquisition software writes, e.g. ``(m/s\xb2)``); a ``.gz`` file is unpacked
+    first. Refuse bytes that are no text (a NUL byte)."""
     check_text_size(path, source)
     try:
-        return path.read_text(encoding="utf-8-sig")
-    except UnicodeDecodeError:
-        raise InputError(f"not a UTF-8 text file; {_CSV_LAYOUT}", source) from None
+        raw = _gunzipped(path, source) if is_gzip_name(path) else path.read_bytes()
     except OSError as exc:
         raise InputError(f"cannot read the file: {exc.strerror or exc}", source) from exc
+    if b"\x00" in raw:
+        raise InputError(f"not a text file (UTF-8 or Latin-1); {_CSV_LAYOUT}", source)
+    try:
+        return raw.decode("utf-8-sig")
+    except UnicodeDecodeError:
+        return raw.decode("latin-1")
+
+
+def holds_number_rows(path: str | os.PathLike[str], max_bytes: int = 1 << 16) -> bool:
+    """Whether a text file has a row of numbers (at least two) in its first ``max_bytes``:
+    a table, unlike a ``readme.txt`` or notes kept beside the data. A file that cannot be
+    read counts as a table (the reader then says what is wrong with it).
+
+    Parameters
+    ----------
+    path : str or path-like
+        The ``.txt``/``.csv``/``.tsv`` file, or its ``.gz``.
+    max_bytes : int
+        How much of the (unpacked) file to look at.
+
+    Returns
+    -------
+    bool
+    """
+    try:
+        if is_gzip_name(path):
+            with gzip.open(path, "rb") as fh:
+                head = fh.read(max_bytes)
+        else:
+            with open(path, "rb") as fh:
+                head = fh.read(max_bytes)
+    except (OSError, EOFError, zlib.error):
+        return True
+    lines = head.decode("latin-1").splitlines()
+    if len(head) == max_bytes and len(lines) > 1:
+        lines = lines[:-1]  # the last line may be cut short
+    for line in lines:
+        line = line.strip()
+        if line and not line.startswith("#"):
+            cells = _split(line, "," in line)
+            if len(cells) >= 2 and _numeric(cells):
+                return True
+    return False
+
+
+def is_gzip_name(path: str | os.PathLike[str]) -> bool:
+    """Whether a file's name ends in ``.gz`` (any case)."""
+    return str(path).lower().endswith(".gz")
+
+
+def _gunzipped(path: Path, source: str) -> bytes:
+    """The unpacked bytes of a gzip file, refused when they exceed the text limit."""
+    try:
+        with gzip.open(path, "rb") as fh:
+            raw = fh.read(MAX_TEXT_BYTES + 1)
+    except (gzip.BadGzipFile, EOFError, zlib.error) as exc:
+        raise InputError(f"not a readable gzip file ({exc})", source) from None
+    if len(raw) > MAX_TEXT_BYTES:
+        raise InputError(f"unpacks to more than the {MAX_TEXT_BYTES} bytes a text reader "
+                         "parses (too large to read safely)", source)
+    return raw
+
+
+def _preamble(rows: list[tuple[int, str]]) -> tuple[list[tuple[int, str]],
+                                                   list[tuple[int, str]]]:
+    """The lines before the first row of numbers (a header, and in exports of acquisition
+    software such as SignalCalc also title, channel and unit lines), and the rows from it
+    on."""
+    for k, (_, line) in enumerate(rows):
+        if _numeric(_split(line, "," in line)):
+            return rows[:k], rows[k:]
+    return rows, []
+
+
+def _header_of(preamble: list[tuple[int, str]], cells: list[tuple[int, list[str]]],
+               comma: bool) -> list[str] | None:
+    """The header among the lines before the data: the one such line, or else the last one
+    with as many cells as the data rows (the column names; title and unit lines around it
+    are left out); ``None`` when there is none."""
+    if len(preamble) == 1 or (preamble and not cells):
+        return _split_header(preamble[-1][1], comma)
+    width = len(cells[0][1]) if cells else 0
+    for _, line in reversed(preamble):
+        header = _split_header(line, comma)
+        if len(header) == width:
+            return header
+    return None
+
+
+_UNIT_QUANTITIES = (
+    ("acceleration", re.compile(r"m\s*/\s*s\s*(?:\xb2|\^\s*2|\*\*\s*2|2)|\(g\)|\bg\s*/\s*n\b",
+                                re.IGNORECASE)),
+    ("velocity", re.compile(r"m\s*/\s*s(?!\s*(?:\xb2|\^|\*\*|2))", re.IGNORECASE)),
+    ("displacement", re.compile(r"\(m\)\s*/?\s*\(n\)|\bm\s*/\s*n\b", re.IGNORECASE)),
+)
+
+
+def _quantity_from_units(preamble: list[tuple[int, str]]) -> tuple[str, str] | None:
+    """The response quantity that the unit lines before the data state (``(m/s\xb2)(N)``:
+    acceleration), with where it was read; ``None`` when they state none or several."""
+    found = {}
+    for number, line in preamble:
+        for quantity, pattern in _UNIT_QUANTITIES:
+            match = pattern.search(line)
+            if match and quantity not in found:
+                found[quantity] = f"the unit {match.group(0)!r} on line {number} of the text file"
+                break
+    if len(found) != 1:
+        return None
+    quantity, where = next(iter(found.items()))
+    return quantity, where
 
 
 def _split_header(line: str, comma: bool) -> list[str]:
