@@ -75,9 +75,11 @@ class Settings:
     coalescence : float
         Poles closer than this many half-power bandwidths form one group, ``> 0``.
     resample : {"auto", "lines", "records", "noise"}
-        What a bootstrap replicate resamples: the repeated records when the data have
-        at least two (``"auto"``), the frequency lines, or (``"noise"``, needs the
-        noise weighting) fresh noise of the noise model around the reference
+        What a bootstrap replicate resamples: ``"auto"``, the repeated records when the
+        data have at least two and their mean is as precise an estimate as the FRF
+        (:func:`automodal.core.noise.mean_as_precise`; not for H1 of random force),
+        else the frequency lines; ``"records"`` or ``"lines"`` always; ``"noise"``
+        (needs the noise weighting) fresh noise of the noise model around the reference
         model's FRF.
     weighting : {"auto", "noise", "envelope"}
         ``"noise"``: lines and channels whitened by the noise model

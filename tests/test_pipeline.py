@@ -163,6 +163,33 @@ def test_record_bootstrap_resamples_the_records():
     assert any("frequency lines" in w for w in lines.warnings)
 
 
+def test_h1_of_random_force_does_not_resample_its_ratio_records():
+    """H1 from 16 records of random force with its per-record ratios Y_r / U_r: their mean
+    is far noisier than H1, so the replicates resample lines (the warning says why), and
+    the modes are found."""
+    from automodal.core import simulate as sim
+
+    system = sim.damp(sim.chain(4), zeta=0.01)
+    freq = sim.frequency_lines(1.25 * sim.natural_frequencies_hz(system).max(), 600)
+    H = sim.frf(system, freq, range(4), [3])
+    rng = np.random.default_rng(3)
+    R = 16
+    U = (rng.standard_normal((R, freq.size)) + 1j * rng.standard_normal((R, freq.size)))
+    Y = H[None, :, :, 0] * U[:, :, None]
+    Y = Y + 0.02 * np.sqrt(np.mean(np.abs(Y) ** 2, axis=(0, 1))) * (
+        rng.standard_normal(Y.shape) + 1j * rng.standard_normal(Y.shape))
+    Suu = np.sum(np.abs(U) ** 2, axis=0)
+    data = sim.simulate_test(system, range(4), [3], freq, noise=0.0, seed=0)[0]
+    data.frf = (np.einsum("rfi,rf->fi", Y, U.conj()) / Suu[:, None])[:, :, None]
+    data.records = (Y / U[:, :, None])[..., None]
+    res = identify(data, Settings(seed=1, n_bootstrap=30, jobs=1))
+    assert any("not resampled" in w for w in res.warnings)
+    assert not any("bootstrap over the 16" in w for w in res.warnings)
+    true = sim.natural_frequencies_hz(system)
+    found = np.array([m.frequency_hz for m in res.physical_modes])
+    assert all(np.min(np.abs(found - f) / f) < 2e-3 for f in true), found
+
+
 def test_report_says_which_weighting_ran():
     case = cases.chain6_1pct()
     result = identify(case.data, Settings(seed=0, n_bootstrap=10))

@@ -75,7 +75,8 @@ Examples:
 @time_input_options
 @debug_option
 def convert(input_paths: tuple[str, ...], output: Path, geometry: str | None,
-            stack: str | None, test_date: str | None, quiet: bool, sample_rate: float | None, forces: str | None, quantity: str | None,
+            stack: str | None, test_date: str | None, quiet: bool,
+            sample_rate: float | None, forces: str | None, quantity: str | None,
             debug: bool) -> None:
     """Convert INPUT to an automodal FRF file OUTPUT.h5 (docs/frf-file.md).
 
