@@ -614,6 +614,15 @@ def select_orders(
             floor = order_at_floor(orders, misfit)
             if floor > n0:
                 rule, n0 = "floor", floor
+            elif rank is not None and rank < ny:
+                # nor does the test's order stand on anything where it lies above the
+                # floor: its "significant" gains are the misfit's slow fall, not modes. The
+                # outputs show ``rank`` directions above the noise, about one per mode the
+                # band holds: n0 is kept to twice that many modes (a 20-output grid's
+                # 0-21 Hz sub-band with 5 modes, 2 % proportional noise on an accelerance
+                # the models miss near 0 Hz, chi2 250 times its dof: n0 = 92 against a
+                # floor of 12 and 7 directions, 87 s for the file)
+                n0 = min(n0, max(floor, STATES_PER_DIRECTION * int(rank)))
     factor = 3.0 if rule == "floor" else SIGNIFICANT_EXCESS
     n_ref = excessive_order(n0, cap, factor)
     q = subspace.block_rows(n_ref, ny)
@@ -639,6 +648,12 @@ def _split_above(
             return n0
     return None
 
+
+STATES_PER_DIRECTION = 4
+"""At most this many states per direction of the outputs above the noise
+(:func:`automodal.core.whitening.output_rank`) when the significance test's order does not
+fit the noise: two per mode, and twice the modes the directions show (weak modes add
+directions below the rank's threshold)."""
 
 NOISE_CONSISTENT = 2.0
 """The smallest model fits the data when its whitened residual is at most this many times
