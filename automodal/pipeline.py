@@ -386,8 +386,8 @@ def _choose_orders(
     if p.variance is not None and choice.rule == "floor":
         # the noise weighting gives the order test nothing to stand on, so the envelope path
         # runs instead
-        message = ("no scanned model fitted the noise-whitened data significantly better"
-                   " than the smallest one, which leaves more than the noise: envelope"
+        message = ("no scanned model fitted the noise-whitened data to the noise, and the"
+                   " misfit still fell beyond the order the significance test chose: envelope"
                    " weighting and the misfit-floor order used")
         if message not in warnings:
             warnings.append(message)

@@ -123,3 +123,17 @@ def test_reference_block_rows_follow_the_outputs_rank():
     assert subspace.reference_block_rows(96, 40, 40) == 4
     assert subspace.reference_block_rows(96, 40, 20) == 7  # ceil(1.2 * 96 / 20) + 1
     assert subspace.reference_block_rows(10, 1, 1) == 11
+
+
+def test_order_off_the_noise_takes_the_floor_above_and_the_directions_below():
+    """When the significant order's model does not fit the noise: the misfit floor when it
+    lies above n0; below it, at most 4 states per output direction above the noise (when
+    the outputs show fewer directions than sensors), never below the floor."""
+    from automodal.core.order import STATES_PER_DIRECTION, order_off_the_noise
+
+    assert order_off_the_noise(4, 32, 39, 20) == (32, "floor")
+    assert order_off_the_noise(92, 12, 20, 7) == (STATES_PER_DIRECTION * 7, "significance")
+    assert order_off_the_noise(92, 40, 20, 7) == (40, "significance")
+    assert order_off_the_noise(92, 12, 20, 20) == (92, "significance")  # rank = sensors
+    assert order_off_the_noise(92, 12, 20, None) == (92, "significance")
+    assert order_off_the_noise(20, 12, 20, 7) == (20, "significance")  # already below

@@ -602,27 +602,7 @@ def select_orders(
         n0 = significant_order(orders, chi2, p, z_alarm, ORDER_TOLERANCE)
         i0 = int(np.flatnonzero(orders == n0)[0])
         if not fits_noise(chi2[i0], min(N, SCAN_LINES), ny, nu, n0):
-            # no scanned model is significantly better than n0's, and n0's does not fit
-            # the data in the noise's terms either: the models are not near the data, and
-            # the test has nothing to say where the log misfit still falls. An 80-mode
-            # grid seen by 40 sensors on half of it: the whitened residual rose from 8e8
-            # at order 2, 1700 times its degrees of freedom, to 1e11-2e12 up to order
-            # 240, while the log misfit fell from 9.3 to 1.3. A 39-output dense grid's
-            # sub-band of 15 modes (family seed 281, f_11): 320 times at order 4, 400 to
-            # 30 000 times above it, the log misfit from 1.35 to 0.16 by order 36. The
-            # misfit floor decides when it lies above n0
-            floor = order_at_floor(orders, misfit)
-            if floor > n0:
-                rule, n0 = "floor", floor
-            elif rank is not None and rank < ny:
-                # nor does the test's order stand on anything where it lies above the
-                # floor: its "significant" gains are the misfit's slow fall, not modes. The
-                # outputs show ``rank`` directions above the noise, about one per mode the
-                # band holds: n0 is kept to twice that many modes (a 20-output grid's
-                # 0-21 Hz sub-band with 5 modes, 2 % proportional noise on an accelerance
-                # the models miss near 0 Hz, chi2 250 times its dof: n0 = 92 against a
-                # floor of 12 and 7 directions, 87 s for the file)
-                n0 = min(n0, max(floor, STATES_PER_DIRECTION * int(rank)))
+            n0, rule = order_off_the_noise(n0, order_at_floor(orders, misfit), ny, rank)
     factor = 3.0 if rule == "floor" else SIGNIFICANT_EXCESS
     n_ref = excessive_order(n0, cap, factor)
     q = subspace.block_rows(n_ref, ny)
@@ -633,6 +613,41 @@ def select_orders(
         q = max(q, min(subspace.reference_block_rows(n_ref, ny, rank), rows))
     return OrderChoice(scanned=orders, misfit=misfit, n0=n0, reference=n_ref, limit=n_limit,
                        chi2=chi2, rule=rule, models=models, block_rows=q)
+
+
+def order_off_the_noise(n0: int, floor: int, ny: int, rank: int | None) -> tuple[int, str]:
+    """``n0`` and its rule when the significant order's model does not fit the noise.
+
+    No scanned model is significantly better than ``n0``'s, and ``n0``'s does not fit the
+    data in the noise's terms either (:func:`fits_noise`): the models are not near the
+    data, and the test has nothing to say where the log misfit still falls. An 80-mode grid
+    seen by 40 sensors on half of it: the whitened residual rose from 8e8 at order 2, 1700
+    times its degrees of freedom, to 1e11-2e12 up to order 240, while the log misfit fell
+    from 9.3 to 1.3. A 39-output dense grid's sub-band of 15 modes (family seed 281, f_11):
+    320 times at order 4, 400 to 30 000 times above it, the log misfit from 1.35 to 0.16
+    by order 36. So the misfit ``floor`` (:func:`order_at_floor`) decides when it lies
+    above ``n0`` (rule ``"floor"``).
+
+    Nor does the test's order stand on anything where it lies above the floor: its
+    "significant" gains are then the misfit's slow fall, not modes. Where the outputs show
+    ``rank`` directions above the noise, fewer than their ``ny`` sensors
+    (:func:`automodal.core.whitening.output_rank`), about one per mode the band holds,
+    ``n0`` is kept to :data:`STATES_PER_DIRECTION` states per direction, and not below
+    the floor. A 20-output grid's 0-21 Hz sub-band with 5 modes, 2 % proportional noise on
+    an accelerance the models miss near 0 Hz, chi2 250 times its degrees of freedom (family
+    seed 252, f_22): ``n0 = 92`` against a floor of 12 and 7 directions, 87 s for the file;
+    now 28 states.
+
+    Returns
+    -------
+    (int, str)
+        The order and its rule (``"floor"`` or ``"significance"``).
+    """
+    if floor > n0:
+        return int(floor), "floor"
+    if rank is not None and rank < ny:
+        return int(min(n0, max(floor, STATES_PER_DIRECTION * int(rank)))), "significance"
+    return int(n0), "significance"
 
 
 def _split_above(
