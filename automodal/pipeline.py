@@ -375,14 +375,16 @@ def _identify_sub_bands(
 
 
 def _choose_orders(
-    p: Prepared, s: Settings, rank: int | None, split_work: float | None, warnings: list[str]
+    p: Prepared, s: Settings, rank: int | None, split_work: float | None, warnings: list[str],
+    reference_cap: int | None = None,
 ) -> tuple[Prepared, order.OrderChoice]:
     """The order scan's choice on the noise weighting, or on the envelope weighting when no
     model is near the data in the noise's terms (the data then prepared for it; the
-    warning said once). ``rank`` and ``split_work`` as for
-    :func:`automodal.core.order.select_orders`."""
+    warning said once). ``rank``, ``split_work`` and ``reference_cap`` (a sub-band's: its
+    band's reference order) as for :func:`automodal.core.order.select_orders`."""
     choice = order.select_orders(p.z, p.Hs, p.line_weights, s.max_order, p.data.source,
-                                 variance=p.variance, rank=rank, split_work=split_work)
+                                 variance=p.variance, rank=rank, split_work=split_work,
+                                 reference_cap=reference_cap)
     if p.variance is not None and choice.rule == "floor":
         # the noise weighting gives the order test nothing to stand on, so the envelope path
         # runs instead
@@ -393,7 +395,8 @@ def _choose_orders(
             warnings.append(message)
         p = p.enveloped()
         choice = order.select_orders(p.z, p.Hs, p.line_weights, s.max_order, p.data.source,
-                                     rank=rank, split_work=split_work)
+                                     rank=rank, split_work=split_work,
+                                     reference_cap=reference_cap)
     return p, choice
 
 
@@ -417,7 +420,7 @@ def _identify(
     split_work = sub_bands.WORK_LIMIT if s.sub_bands and s.max_order is None else None
     tell(progress, "orders")
     prepared = p
-    p, choice = _choose_orders(prepared, s, rank, split_work, warnings)
+    p, choice = _choose_orders(prepared, s, rank, split_work, warnings, parent_order)
     n_bands = 1
     if s.sub_bands and s.max_order is None and (parent_order is None
                                                  or choice.reference < parent_order):
@@ -437,7 +440,7 @@ def _identify(
     if split_work is not None and (n_bands > 1 or choice.reference >= (parent_order or 0) > 0):
         # no split after all: the scan may have ended early, at a stage whose order had not
         # settled (a 9-DOF chain over 51 201 lines: n0 = 56 there against 36 when scanned on)
-        p, choice = _choose_orders(prepared, s, rank, None, warnings)
+        p, choice = _choose_orders(prepared, s, rank, None, warnings, parent_order)
     if s.max_order is not None and choice.n0 >= choice.limit:
         warnings.append(
             f"the largest model order {s.max_order} (states, two per mode: at most "
