@@ -98,6 +98,36 @@ def test_qr_and_gram_paths_give_the_same_subspace_on_noisy_data(outputs, inputs,
         assert np.max(subspace_angles(O_qr, O_gr)) < 1e-8
 
 
+@pytest.mark.parametrize("kind", ["monomial", "orthonormal"])
+@pytest.mark.parametrize("chunk_bytes", [64 * 2**20, 5_000])
+def test_gram_sums_are_the_weighted_sums_they_define(kind, chunk_bytes):
+    """Every block of the Gram sums equals its definition, summed line by line, whatever
+    the chunks and the map (a thread pool gives the very same numbers)."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    rng = np.random.default_rng(4)
+    N, ny, nu, q, B = 57, 3, 2, 4, 5
+    z = np.exp(1j * np.linspace(0.3, 2.0, N))
+    H = rng.standard_normal((N, ny, nu)) + 1j * rng.standard_normal((N, ny, nu))
+    w = rng.poisson(1.0, (B, N)).astype(float)
+    basis = subspace.row_basis(z, q, kind)
+    sums = subspace.gram_sums(basis, H, w, chunk_bytes=chunk_bytes)
+    with ThreadPoolExecutor(2) as pool:
+        threaded = subspace.gram_sums(basis, H, w, chunk_bytes=chunk_bytes, map_fn=pool.map)
+    P = basis.values
+    for b in range(B):
+        a = np.einsum("k,ik,jk->ij", w[b], P, P.conj())  # sum c p_i conj(p_j)
+        yu = np.einsum("k,ik,jk,kab->ijab", w[b], P, P.conj(), H)
+        yy = np.einsum("k,ik,jk,kab,kcb->ijac", w[b], P, P.conj(), H, H.conj())
+        tu, gyu, gyy = sums.blocks(b)
+        scale = np.abs(yy).max()
+        assert np.abs(tu - a.real).max() < 1e-12 * np.abs(a).max()
+        assert np.abs(gyu - yu.real).max() < 1e-12 * np.abs(yu).max()
+        assert np.abs(gyy - yy.real).max() < 1e-12 * scale
+        for got, again in zip(sums.blocks(b), threaded.blocks(b)):
+            assert np.array_equal(got, again)
+
+
 def test_weighted_gram_equals_qr_on_repeated_lines():
     """A bootstrap weight c_k is the same as c_k copies of line k, on both paths."""
     system = _system("chain8")
