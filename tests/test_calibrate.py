@@ -267,3 +267,36 @@ def test_cli_writes_the_result_and_figures(tmp_path):
     assert (tmp_path / "fig" / "frf_overlay.png").stat().st_size > 0
     assert (tmp_path / "fig" / "parameters.png").stat().st_size > 0
     assert "k6" in proc.stdout
+
+
+def test_calibration_figures_draw_the_curves_and_label_the_axes():
+    """The overlay draws the four curves of every entry (measured under the test data model,
+    FE calibrated dashed) with units on the magnitude axis; the histograms are in percent of
+    the calibrated value, each titled with its value and interval (issue 15: readable ticks
+    where the bootstrap spread is 1e-5 of the value)."""
+    from automodal.app.calibration_plots import frf_overlay, parameter_distributions
+
+    data, _ = chain_test(seed=2)
+    outcome = calibrate_data(data, chain_model(), CalibrationSettings(n_bootstrap=8, seed=1))
+    fig = frf_overlay(outcome)
+    axes = [ax for ax in fig.axes if ax.get_visible()]
+    assert len(axes) == N_DOF
+    assert axes[0].get_ylabel() == "|H| receptance (m/N)"
+    labels = [line.get_label() for line in axes[0].get_lines()]
+    assert labels == ["measured", "test data model", "FE nominal", "FE calibrated"]
+    measured, _, _, calibrated = axes[2].get_lines()
+    np.testing.assert_allclose(measured.get_ydata(), np.abs(outcome.measured[:, 2, 0]))
+    assert calibrated.get_linestyle() == "--" and measured.get_linewidth() > 2
+    assert "entries" not in fig.get_suptitle()  # all six drawn
+
+    fig = parameter_distributions(outcome)
+    axes = [ax for ax in fig.axes if ax.get_visible()]
+    assert len(axes) == N_DOF
+    first = outcome.result["parameters"][0]
+    assert axes[0].get_title().startswith(f"{first['name']} = {first['value']:.5g}")
+    assert axes[0].get_xlabel() == "change from the calibrated value (%)"
+    assert axes[0].get_ylabel() == "bootstrap datasets"
+    counts = sum(patch.get_height() for patch in axes[0].patches)
+    assert counts == outcome.replicate_theta.shape[0]
+    fig.canvas.draw()  # tick labels need a draw: no offset text, plain percentages
+    assert axes[0].xaxis.get_offset_text().get_text() == ""
