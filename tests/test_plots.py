@@ -167,9 +167,13 @@ def test_pole_map_over_the_frf(report, identified, frf_arrays):
     ax, twin = fig.axes
     assert ax.get_xlabel() == "frequency (Hz)"
     assert ax.get_ylabel() == "bootstrap replicate"
-    assert twin.get_yscale() == "log" and "Σ|H|" in twin.get_ylabel()
+    assert twin.get_yscale() == "log" and twin.get_ylabel() == "Σ|H| over channels"
     present = gids(ax)
     assert "trashbox" in present
+    operational = copy.deepcopy(report)  # output-only: half spectra
+    operational["input"]["attributes"]["analysis"] = "operational"
+    _, twin = plots.pole_map(operational, result.poles, frf_arrays).axes
+    assert twin.get_ylabel() == "Σ|G| half spectra"
     clusters = {f"cluster-{c}" for c in np.unique(result.poles.cluster) if c >= 0}
     assert clusters and clusters <= present
     labels = [t for t in ax.texts if t.get_gid() == "mode-label"]

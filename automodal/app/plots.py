@@ -142,7 +142,7 @@ def pole_map(
     handles = _pole_legend_handles()
     parts = _frf_parts(frf)
     if parts is not None:
-        handles.append(_draw_frf_sum(ax, parts[0], parts[1]))
+        handles.append(_draw_frf_sum(ax, parts[0], parts[1], _operational(report)))
     _top_legend(ax, fig, handles)
     summary = report.summary
     n_trash = int(np.count_nonzero(trash))
@@ -227,7 +227,7 @@ def stabilization_diagram(
     _label_modes(ax, fig, modes, mode_colors(len(modes)))
     parts = _frf_parts(frf)
     if parts is not None:
-        handles.append(_draw_frf_sum(ax, parts[0], parts[1]))
+        handles.append(_draw_frf_sum(ax, parts[0], parts[1], _operational(report)))
     _top_legend(ax, fig, handles, max_columns=3)
     n_stable = int(np.count_nonzero(flags == st.STABLE_ALL))
     fig.suptitle(
@@ -281,7 +281,12 @@ def automac(report: ReportLike, *, fig: Figure | SubFigure | None = None
     fig.colorbar(image, ax=ax, label="MAC", shrink=0.8)
     off = matrix[~np.eye(n, dtype=bool)]
     worst = f"; largest off-diagonal {off.max():.2f}" if off.size else ""
-    fig.suptitle(f"AutoMAC of the {n} physical modes{worst}", fontsize=10)
+    channels = shapes.shape[0]
+    # fewer channels than modes: some shapes must share directions (spatial aliasing),
+    # which is the sensors' limit, not the identification's
+    few = (f"\n{channels} channels cannot tell {n} shapes apart: high off-diagonal values "
+           "are expected" if channels < n else "")
+    fig.suptitle(f"AutoMAC of the {n} physical modes{worst}{few}", fontsize=10)
     return fig
 
 
@@ -755,19 +760,22 @@ def _top_legend(ax: Axes, fig: Figure | SubFigure, handles: list[Any],
               frameon=False, fontsize=fontsize, borderaxespad=0.2)
 
 
-def _draw_frf_sum(ax: Axes, frequency: np.ndarray, H: np.ndarray) -> Any:
-    """The FRF magnitude summed over channels on a log twin axis behind ``ax``'s artists."""
+def _draw_frf_sum(ax: Axes, frequency: np.ndarray, H: np.ndarray,
+                  operational: bool = False) -> Any:
+    """The FRF magnitude summed over channels on a log twin axis behind ``ax``'s artists
+    (``operational``: output-only half spectra, named so)."""
     twin = ax.twinx()
     total = np.sum(np.abs(np.asarray(H)), axis=(1, 2))
+    name = "Σ|G| half spectra" if operational else "Σ|H| over channels"
     (line,) = twin.plot(frequency, total, color="0.25", lw=0.8, alpha=0.7, gid="frf-sum",
-                        label="Σ|H| over channels")
+                        label=name)
     twin.set_yscale("log")
     positive = total[np.isfinite(total) & (total > 0)]
     if positive.size and positive.max() > positive.min():
         lo, hi = np.log10(positive.min()), np.log10(positive.max())
         margin = 0.03 * (hi - lo)
         twin.set_ylim(10 ** (lo - margin), 10 ** (lo + POLE_MAP_HEADROOM * (hi - lo + margin)))
-    twin.set_ylabel("Σ|H| over channels")
+    twin.set_ylabel(name)
     ax.set_zorder(twin.get_zorder() + 1)
     ax.patch.set_visible(False)
     return line
