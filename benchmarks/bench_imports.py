@@ -11,6 +11,9 @@ modules a run needs too: multiprocessing, json, concurrent.futures, threadpoolct
 Bytecode is cached under a temporary ``PYTHONPYCACHEPREFIX``, as it is for an installed
 package (without it every run compiles automodal's own modules again).
 
+The issue's own measure, ``python -X importtime`` (wall time of each import, summed), is
+printed first, for this tree with its bytecode cached.
+
     python benchmarks/bench_imports.py                  # this tree and the floor, 7 runs
     python benchmarks/bench_imports.py --other ../old --runs 11
 """
@@ -60,6 +63,21 @@ def cpu_seconds(tree: Path, cache: Path, code: str) -> float:
     return usage.ru_utime + usage.ru_stime
 
 
+def importtime_seconds(tree: Path, cache: Path, out: Path) -> float:
+    """The issue's own measure: ``python -X importtime -m automodal identify ...`` of
+    ``tree``, the modules' self times summed (seconds of wall time, bytecode cached)."""
+    done = subprocess.run(
+        [sys.executable, "-X", "importtime", "-m", "automodal", "identify", str(SAMPLE),
+         "-o", str(out), "--quiet"], cwd=tree, env=_env(tree, cache), capture_output=True,
+        text=True, check=True)
+    total = 0
+    for line in done.stderr.splitlines():
+        parts = line.split("|")
+        if line.startswith("import time:") and len(parts) == 3 and parts[0][12:].strip().isdigit():
+            total += int(parts[0][12:])
+    return total / 1e6
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--other", type=Path, help="another tree to compare (a checkout)")
@@ -81,6 +99,11 @@ def main() -> None:
         for _ in range(args.runs):  # interleaved, so that a burst of load hits every case
             for k, (tree, code) in cases.items():
                 times[k].append(cpu_seconds(tree, cache, code))
+        importtime = [importtime_seconds(ROOT, cache, cache / "r.json")
+                      for _ in range(args.runs)]
+    print(f"`python -X importtime -m automodal identify {SAMPLE.name}`, sum of the modules'"
+          f" self times (wall, bytecode cached), {args.runs} runs: median"
+          f" {statistics.median(importtime):.3f} s, min {min(importtime):.3f} s\n")
     print(f"CPU seconds (user + system), {args.runs} interleaved runs;"
           f" load average at the end {os.getloadavg()[0]:.2f}")
     print("\n| median | min | what is imported |\n|---:|---:|---|")
