@@ -187,6 +187,8 @@ def frfdata_from_time(
         else:
             hits = spectra.detect_hits(ts.inputs, ts.sample_rate)
             excitation = "random" if hits is None else "impact"
+            if hits is None:
+                _check_forces_not_swapped(ts)
     elif excitation in ("random", "impact") and ts.inputs is None:
         raise ValueError(f"{excitation} analysis needs measured forces (inputs)")
     if decimation != 1 and excitation != "operational":
@@ -355,6 +357,22 @@ def _operational(
         lag_window_decay_per_s=spectra.exponential_decay(m, fs, tail),
     )
     return freq, G, None, None, names
+
+
+def _check_forces_not_swapped(ts: TimeSeries) -> None:
+    """Refuse forces that are not impulsive beside a response that is: a hammer's pulse
+    in a response channel and a ringing response in the force channel mean the channels
+    were given the wrong way round (``--forces 1`` for the first column, say), which the
+    random route would analyse into no mode at all, without a word."""
+    from automodal.core import spectra
+
+    for j, name in enumerate(ts.output_names):
+        if spectra.detect_hits(ts.outputs[:, [j]], ts.sample_rate) is not None:
+            forces = ", ".join(repr(n) for n in ts.input_names)
+            raise ValueError(
+                f"response channel {name!r} holds hammer hits but the force channel(s) "
+                f"{forces} do not: the channels look swapped; give the hammer's channel as "
+                "the force (--forces takes names or 0-based positions)")
 
 
 def _check_not_constant(x: np.ndarray, names: list[str], side: str) -> None:
