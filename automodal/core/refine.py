@@ -41,9 +41,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
-MAX_ITERATIONS = 30
-"""Gauss-Newton (Levenberg-Marquardt) iterations at most; from the subspace estimate the
-fit converges in a few."""
+MAX_ITERATIONS = 10
+"""Gauss-Newton (Levenberg-Marquardt) iterations at most. From the subspace estimate an
+isolated mode's fit converges in a few. A joint fit of many overlapping poles (dense grids,
+30-40 free poles) converges only linearly: where the model's misfit is systematic (the other
+poles held fixed), each step moves the poles 0.2-0.6 standard deviations along a curved
+valley, for as many steps as allowed, and the fit is restarted each time a pole strays.
+Those further steps do not bring the estimates nearer the truth: on the 64 files of the
+calibration seeds 281 and 283 the intervals' coverage was the same with 10, 30 and 150
+iterations (frequency 0.907, 0.905, 0.903; damping 0.919, 0.922, 0.922; recall and false
+modes identical), while the files' total time was 207, 214 and 246 s and the slowest file
+10.3, 15.5 and 28.0 s. The full Golub-Pereyra Jacobian instead of Kaufman's did not
+converge faster."""
 
 RELATIVE_TOLERANCE = 1e-12
 """Stop when an accepted step lowers the cost by less than this share of it."""
