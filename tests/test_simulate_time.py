@@ -142,21 +142,22 @@ def test_simulate_time_test_is_deterministic_and_noisy_as_asked():
         st.simulate_time_test(system, None, [0, 1], "hits")
 
 
-def test_swapped_force_and_response_are_refused_not_analysed():
+def test_swapped_force_and_response_are_said_not_analysed_silently():
     """A hammer's pulses in a response channel and a ringing force channel are channels
-    given the wrong way round (seen with --forces 1 for a file's first column): refused
-    with what to do, not analysed as random excitation into no mode at all. Random
-    excitation itself passes the check."""
-    from automodal.errors import InputError
+    given the wrong way round (seen with --forces 1 for a file's first column): the random
+    route's result carries a warning that says what to do (not a refusal: a spike in a
+    response of a true random test looks the same). Random excitation gets no warning."""
     from automodal.timedata import TimeSeries
 
     ts, _, _ = st.simulate_time_test(chain(3), None, [2], "hits", noise=0.01, seed=2)
     swapped = TimeSeries(outputs=ts.inputs, inputs=ts.outputs[:, [2]],
                          sample_rate=ts.sample_rate, attributes=dict(ts.attributes))
-    with pytest.raises(InputError, match="look swapped.*--forces"):
-        as_frfdata(swapped)
+    info = as_frfdata(swapped).attributes["time_analysis"]
+    assert info["excitation"] == "random"
+    assert any("impulsive" in w and "--forces" in w for w in info["warnings"])
     random, _, _ = st.simulate_time_test(chain(3), None, [2], "random", noise=0.01, seed=2)
-    assert as_frfdata(random).attributes["time_analysis"]["excitation"] == "random"
+    info = as_frfdata(random).attributes["time_analysis"]
+    assert info["excitation"] == "random" and not info.get("warnings")
 
 
 def test_hits_are_separate_decays_the_input_stage_finds():

@@ -94,7 +94,8 @@ class CalibrationOutcome:
         The measured FRF, the test data model's, and the FE model's at the nominal and the
         calibrated parameters (damping equalized), for the figures.
     replicate_theta : ndarray, shape (B, p)
-        The bootstrap datasets' parameters.
+        The parameters of the bootstrap datasets whose calibration converged (all of them
+        when fewer than two did), the ones the intervals come from.
     """
 
     result: dict[str, Any]
@@ -216,7 +217,9 @@ def calibrate_data(
     result["runtime_s"] = time.perf_counter() - t0
     return CalibrationOutcome(result=result, frequency_hz=f, measured=H,
                               test_model=cal.target_frf(problem, test), fe_before=fe_before,
-                              fe_after=fe_after, replicate_theta=boot.theta,
+                              fe_after=fe_after,
+                              replicate_theta=(boot.theta[boot.converged]
+                                               if boot.converged.sum() >= 2 else boot.theta),
                               names=list(model.names))
 
 

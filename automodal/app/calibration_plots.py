@@ -21,14 +21,6 @@ MAX_PANELS = 12
 """FRF entries drawn at most (the first ones, output by output)."""
 
 
-def _magnitude_label(quantity: str) -> str:
-    """``|H| receptance (m/N)`` and the like, for the result's FRF quantity."""
-    from automodal.app.plots import _QUANTITY_FRF
-
-    kind, unit = _QUANTITY_FRF.get(quantity, ("FRF", ""))
-    return f"|H| {kind} ({unit})" if unit else f"|H| {kind}"
-
-
 def frf_overlay(outcome: CalibrationOutcome) -> Figure:
     """Magnitude of each FRF entry: measured, the test data model, and the FE model before
     and after calibration (damping equalized).
@@ -52,7 +44,9 @@ def frf_overlay(outcome: CalibrationOutcome) -> Figure:
               (outcome.fe_before, "FE nominal", dict(color="tab:red", lw=0.9, ls=":")),
               (outcome.fe_after, "FE calibrated", dict(color="tab:blue", lw=1.3,
                                                        ls=(0, (5, 3))))]
-    ylabel = _magnitude_label(str(outcome.result.get("quantity", "")))
+    from automodal.app.plots import magnitude_label
+
+    ylabel = magnitude_label(str(outcome.result.get("quantity", "")))
     for k, (ax, (i, j)) in enumerate(zip(axes, entries)):
         for H, label, style in curves:
             ax.semilogy(f, np.abs(H[:, i, j]), label=label, **style)

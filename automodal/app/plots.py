@@ -282,10 +282,10 @@ def automac(report: ReportLike, *, fig: Figure | SubFigure | None = None
     off = matrix[~np.eye(n, dtype=bool)]
     worst = f"; largest off-diagonal {off.max():.2f}" if off.size else ""
     channels = shapes.shape[0]
-    # fewer channels than modes: some shapes must share directions (spatial aliasing),
+    # fewer channels than modes: the shapes cannot all be orthogonal (spatial aliasing),
     # which is the sensors' limit, not the identification's
-    few = (f"\n{channels} channels cannot tell {n} shapes apart: high off-diagonal values "
-           "are expected" if channels < n else "")
+    few = (f"\n{channels} channels for {n} modes: the shapes cannot all be orthogonal, "
+           "some off-diagonal MAC is unavoidable" if channels < n else "")
     fig.suptitle(f"AutoMAC of the {n} physical modes{worst}{few}", fontsize=10)
     return fig
 
@@ -1121,8 +1121,14 @@ def _operational(report: Report) -> bool:
 def _magnitude_label(report: Report) -> str:
     """The magnitude axis label with the quantity's name and SI units, e.g.
     ``|H| accelerance ((m/s²)/N)``; half spectra of output-only data say so."""
-    quantity = report.input.quantity
-    if _operational(report):
+    return magnitude_label(report.input.quantity, _operational(report))
+
+
+def magnitude_label(quantity: str, operational: bool = False) -> str:
+    """The magnitude axis label of FRFs of ``quantity`` (``displacement``, ``velocity`` or
+    ``acceleration``): its FRF's name and SI units, e.g. ``|H| accelerance ((m/s²)/N)``;
+    ``operational``: half spectra of output-only data."""
+    if operational:
         unit = _QUANTITY_UNIT.get(quantity)
         return f"|G| half spectrum ({unit})²" if unit else "|G| half spectrum"
     kind, unit = _QUANTITY_FRF.get(quantity, ("FRF", ""))

@@ -180,7 +180,7 @@ def frfdata_from_time(
     if problem:
         raise ValueError(problem)
 
-    hits = None
+    hits, swapped = None, None
     if excitation == "auto":
         if ts.inputs is None:
             excitation = "operational"
@@ -188,7 +188,7 @@ def frfdata_from_time(
             hits = spectra.detect_hits(ts.inputs, ts.sample_rate)
             excitation = "random" if hits is None else "impact"
             if hits is None:
-                _check_forces_not_swapped(ts)
+                swapped = _forces_look_swapped(ts)
     elif excitation in ("random", "impact") and ts.inputs is None:
         raise ValueError(f"{excitation} analysis needs measured forces (inputs)")
     if decimation != 1 and excitation != "operational":
@@ -217,6 +217,8 @@ def frfdata_from_time(
         freq, H, coherence, records = _random(ts, nperseg, info)
         input_names = ts.input_names
         attributes["analysis"] = "h1"
+        if swapped:
+            info["warnings"] = [*info.get("warnings", []), swapped]
 
     top = usable_fraction * fs / 2.0
     if "force_limit_hz" in info:  # impacts: only where the hammer excites the structure
@@ -359,20 +361,22 @@ def _operational(
     return freq, G, None, None, names
 
 
-def _check_forces_not_swapped(ts: TimeSeries) -> None:
-    """Refuse forces that are not impulsive beside a response that is: a hammer's pulse
-    in a response channel and a ringing response in the force channel mean the channels
-    were given the wrong way round (``--forces 1`` for the first column, say), which the
-    random route would analyse into no mode at all, without a word."""
+def _forces_look_swapped(ts: TimeSeries) -> str | None:
+    """A warning when the forces are not impulsive but a response channel is: a hammer's
+    pulses in a response and a ringing force channel mean the channels were given the wrong
+    way round (``--forces 1`` for the first column, say), which the random route analyses
+    into no mode at all. Only a warning: a spike, an overload or a shock in a response of a
+    true random test looks the same to the hit detector."""
     from automodal.core import spectra
 
     for j, name in enumerate(ts.output_names):
         if spectra.detect_hits(ts.outputs[:, [j]], ts.sample_rate) is not None:
             forces = ", ".join(repr(n) for n in ts.input_names)
-            raise ValueError(
-                f"response channel {name!r} holds hammer hits but the force channel(s) "
-                f"{forces} do not: the channels look swapped; give the hammer's channel as "
-                "the force (--forces takes names or 0-based positions)")
+            return (f"response channel {name!r} is impulsive (hammer hits, or spikes) while "
+                    f"the force channel(s) {forces} are not: analysed as random excitation; "
+                    "if the channels are swapped, give the hammer's channel as the force "
+                    "(--forces takes names or 0-based positions)")
+    return None
 
 
 def _check_not_constant(x: np.ndarray, names: list[str], side: str) -> None:

@@ -297,17 +297,22 @@ class GramSums:
         return uu[..., dmat + q - 1].real, yu[..., dmat + q - 1, :, :].real, gyy.real
 
 
-def _basis_products(P: np.ndarray, toeplitz: bool) -> tuple[np.ndarray, np.ndarray]:
-    """Per-line basis products: ``pa`` (N, n_a) for the ``uu`` and ``yu`` sums and ``py``
-    (N, n_y) for the ``yy`` sums (powers ``z^d`` for the monomial basis, else
-    ``p_i conj(p_j)``)."""
-    q, N = P.shape
+def _basis_products(P: np.ndarray, toeplitz: bool, columns: np.ndarray | None = None,
+                    lines: slice = slice(None)) -> np.ndarray:
+    """Per-line basis products ``(n_lines, n_columns)``: for the monomial basis the powers
+    ``z^d``, ``d = -(q-1) .. q-1`` (column ``d + q - 1``), else ``p_i conj(p_j)`` (column
+    ``i q + j``); ``columns`` selects some (default all) and ``lines`` the lines, so that
+    they are formed a chunk of lines at a time (all of them, ``q^2`` per line, would grow
+    with ``N``)."""
+    q = P.shape[0]
+    Pl = P[:, lines]
     if toeplitz:
-        z = P[1] if q > 1 else np.ones(N, dtype=complex)
-        pa = z[:, None] ** np.arange(-(q - 1), q)[None, :]  # (N, 2q-1)
-        return pa, pa[:, q - 1 :]
-    pa = (P.T[:, :, None] * P.T[:, None, :].conj()).reshape(N, q * q)
-    return pa, pa
+        z = Pl[1] if q > 1 else np.ones(Pl.shape[1], dtype=complex)
+        powers = np.arange(-(q - 1), q) if columns is None else np.asarray(columns) - (q - 1)
+        return z[:, None] ** powers[None, :]
+    cols = np.arange(q * q) if columns is None else np.asarray(columns)
+    i, j = np.divmod(cols, q)
+    return Pl[i].T * Pl[j].T.conj()
 
 
 LINES_PER_PRODUCT = 4096
@@ -357,17 +362,18 @@ def gram_sums(
     q, toeplitz = basis.q, basis.monomial
     c = np.ones((1, N)) if weights is None else np.atleast_2d(np.asarray(weights, float))
     B = c.shape[0]
-    pa, py = _basis_products(basis.values, toeplitz)
-    n_a, n_y = pa.shape[1], py.shape[1]
+    n_a = 2 * q - 1 if toeplitz else q * q
     Hf = H.reshape(N, ny * nu)
-    # units of columns: the basis products; each of them times H; each of py times H H^H
-    units = [(pa, None, n_a)]
-    units += [(pa[:, a], Hf, ny * nu) for a in range(n_a)]
     # the yy sums are Hermitian in the basis pair (yy[j, i] = yy[i, j]^H): only i <= j is
-    # summed for a general basis (the monomial basis's q lags are already one side)
-    pairs = (np.arange(n_y) if toeplitz else
+    # summed for a general basis (the monomial basis's q lags, columns q-1 .., are one side)
+    pairs = (np.arange(q) if toeplitz else
              np.flatnonzero(np.triu(np.ones((q, q), dtype=bool)).ravel()))
-    units += [(py[:, d], "HH", ny * ny) for d in pairs]
+    yy_columns = pairs + (q - 1) if toeplitz else pairs
+    # units of columns: (kind, basis product column, width): the basis products; each of
+    # them times H; each of the yy ones times H H^H
+    units: list[tuple[str, int, int]] = [("a", -1, n_a)]
+    units += [("yu", a, ny * nu) for a in range(n_a)]
+    units += [("yy", int(a), ny * ny) for a in yy_columns]
     offsets = np.concatenate([[0], np.cumsum([u[2] for u in units])])
     n_feat = int(offsets[-1])
     # blocks of consecutive units of about ``width`` complex columns over (up to) all lines
@@ -379,31 +385,36 @@ def gram_sums(
             blocks.append((first, j))
             first = j
     acc = np.zeros((B, 2 * n_feat))
-    # H_k H_k^H once when it fits in a chunk's memory, else per chunk of lines
+    # H_k H_k^H once when it fits in a chunk's memory, else once per chunk of lines
     HH_all = (np.einsum("kab,kcb->kac", H, H.conj()).reshape(N, ny * ny)
               if 16 * N * ny * ny <= chunk_bytes else None)
 
-    def hh(sl: slice) -> np.ndarray:
-        if HH_all is not None:
-            return HH_all[sl]
-        Hc = H[sl]
-        return np.einsum("kab,kcb->kac", Hc, Hc.conj()).reshape(-1, ny * ny)
-
     def block_sum(block: tuple[int, int]) -> None:
         u0, u1 = block
+        mine = units[u0:u1]
         cols = int(offsets[u1] - offsets[u0])
-        step = max(1, chunk_bytes // (16 * cols))
         out = acc[:, 2 * offsets[u0] : 2 * offsets[u1]]
+        wanted = np.array([a for kind, a, _ in mine if kind != "a"], dtype=int)
+        # a chunk's features and basis products (about three times their size while they
+        # are formed) within ``chunk_bytes``
+        basis_cols = wanted.size + (n_a if mine[0][0] == "a" else 0)
+        step = max(1, chunk_bytes // (16 * (cols + 3 * basis_cols)))
         for start in range(0, N, step):
             sl = slice(start, min(N, start + step))
             F = np.empty((sl.stop - sl.start, cols), dtype=complex)
-            at = 0
-            for p, data, w in units[u0:u1]:
-                if data is None and p.ndim == 2:
-                    F[:, at : at + w] = p[sl]
+            products = _basis_products(basis.values, toeplitz, wanted, sl)
+            hh = None
+            if any(kind == "yy" for kind, _, _ in mine):
+                hh = (HH_all[sl] if HH_all is not None else np.einsum(
+                    "kab,kcb->kac", H[sl], H[sl].conj()).reshape(-1, ny * ny))
+            at, k = 0, 0
+            for kind, _, w in mine:
+                if kind == "a":
+                    F[:, at : at + w] = _basis_products(basis.values, toeplitz, None, sl)
                 else:
-                    np.multiply(p[sl, None], hh(sl) if isinstance(data, str) else data[sl],
+                    np.multiply(products[:, k, None], hh if kind == "yy" else Hf[sl],
                                 out=F[:, at : at + w])
+                    k += 1
                 at += w
             # complex features as real columns: real weights times them in one real product
             out += c[:, sl] @ F.view(float)
