@@ -217,9 +217,7 @@ def calibrate_data(
     result["runtime_s"] = time.perf_counter() - t0
     return CalibrationOutcome(result=result, frequency_hz=f, measured=H,
                               test_model=cal.target_frf(problem, test), fe_before=fe_before,
-                              fe_after=fe_after,
-                              replicate_theta=(boot.theta[boot.converged]
-                                               if boot.converged.sum() >= 2 else boot.theta),
+                              fe_after=fe_after, replicate_theta=_interval_datasets(boot),
                               names=list(model.names))
 
 
@@ -231,14 +229,22 @@ def _interval(samples: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return std, lo, hi
 
 
+def _interval_datasets(boot: cal.BootstrapCalibration,
+                       values: np.ndarray | None = None) -> np.ndarray:
+    """``values`` of the bootstrap datasets (default their parameters) the intervals come
+    from: those whose calibration converged, or all of them when fewer than two did."""
+    values = boot.theta if values is None else values
+    ok = boot.converged
+    return values[ok] if ok.sum() >= 2 else values
+
+
 def _result(problem: cal.CalibrationProblem, test: TestModel, fit: cal.CalibrationFit,
             boot: cal.BootstrapCalibration, nominal: np.ndarray, identified: Any,
             settings: CalibrationSettings, data: FRFData) -> dict[str, Any]:
     """The result document."""
     model = problem.model
     ok = boot.converged
-    theta_b = boot.theta[ok] if ok.sum() >= 2 else boot.theta
-    std, lo, hi = _interval(theta_b)
+    std, lo, hi = _interval(_interval_datasets(boot))
     parameters = [
         {"name": name, "value": float(fit.theta[i]), "std": float(std[i]),
          "ci95": [float(lo[i]), float(hi[i])], "lower": float(model.lower[i]),
@@ -251,8 +257,7 @@ def _result(problem: cal.CalibrationProblem, test: TestModel, fit: cal.Calibrati
     pairs = dict(pair_modes(after_modes, test))
     macs = mac(test.residue_vectors(), after_modes.residue_vectors())
     order = np.argsort(test.frequency_hz)
-    fe_b = boot.fe_frequency_hz[ok] if ok.sum() >= 2 else boot.fe_frequency_hz
-    f_std, f_lo, f_hi = _interval(fe_b)
+    f_std, f_lo, f_hi = _interval(_interval_datasets(boot, boot.fe_frequency_hz))
     meas_b = np.sort(boot.test_frequency_hz, axis=1)
     m_std, m_lo, m_hi = _interval(meas_b)
     modes = []

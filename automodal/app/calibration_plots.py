@@ -31,6 +31,8 @@ def frf_overlay(outcome: CalibrationOutcome) -> Figure:
     """
     from matplotlib.figure import Figure
 
+    from automodal.app.plots import magnitude_label
+
     _, ny, nu = outcome.measured.shape
     every = [(i, j) for i in range(ny) for j in range(nu)]
     entries = every[:MAX_PANELS]
@@ -44,8 +46,6 @@ def frf_overlay(outcome: CalibrationOutcome) -> Figure:
               (outcome.fe_before, "FE nominal", dict(color="tab:red", lw=0.9, ls=":")),
               (outcome.fe_after, "FE calibrated", dict(color="tab:blue", lw=1.3,
                                                        ls=(0, (5, 3))))]
-    from automodal.app.plots import magnitude_label
-
     ylabel = magnitude_label(str(outcome.result.get("quantity", "")))
     for k, (ax, (i, j)) in enumerate(zip(axes, entries)):
         for H, label, style in curves:

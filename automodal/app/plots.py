@@ -347,7 +347,7 @@ def frf_fit(
     for mode in report.physical_modes:
         for ax in (ax_mag, ax_ph):
             ax.axvline(mode.frequency_hz, color="0.75", lw=0.6, ls=":", zorder=0)
-    ax_mag.set_ylabel(_magnitude_label(report))
+    ax_mag.set_ylabel(magnitude_label(report.input.quantity, _operational(report)))
     ax_ph.set_ylabel("phase (°)")
     ax_ph.set_ylim(-190, 190)
     ax_ph.set_yticks([-180, -90, 0, 90, 180])
@@ -1116,12 +1116,6 @@ def _pct_value(x: float) -> str:
 def _operational(report: Report) -> bool:
     """Whether the report's data were output-only half spectra."""
     return report.input.attributes.get("analysis") == "operational"
-
-
-def _magnitude_label(report: Report) -> str:
-    """The magnitude axis label with the quantity's name and SI units, e.g.
-    ``|H| accelerance ((m/s²)/N)``; half spectra of output-only data say so."""
-    return magnitude_label(report.input.quantity, _operational(report))
 
 
 def magnitude_label(quantity: str, operational: bool = False) -> str:

@@ -397,20 +397,24 @@ def gram_sums(
         wanted = np.array([a for kind, a, _ in mine if kind != "a"], dtype=int)
         # a chunk's features and basis products (about three times their size while they
         # are formed) within ``chunk_bytes``
-        basis_cols = wanted.size + (n_a if mine[0][0] == "a" else 0)
+        with_all = mine[0][0] == "a"  # the block starts with every basis product
+        with_yy = any(kind == "yy" for kind, _, _ in mine)
+        basis_cols = n_a if with_all else wanted.size
         step = max(1, chunk_bytes // (16 * (cols + 3 * basis_cols)))
         for start in range(0, N, step):
             sl = slice(start, min(N, start + step))
             F = np.empty((sl.stop - sl.start, cols), dtype=complex)
-            products = _basis_products(basis.values, toeplitz, wanted, sl)
+            every = _basis_products(basis.values, toeplitz, None, sl) if with_all else None
+            products = (every[:, wanted] if every is not None
+                        else _basis_products(basis.values, toeplitz, wanted, sl))
             hh = None
-            if any(kind == "yy" for kind, _, _ in mine):
+            if with_yy:
                 hh = (HH_all[sl] if HH_all is not None else np.einsum(
                     "kab,kcb->kac", H[sl], H[sl].conj()).reshape(-1, ny * ny))
             at, k = 0, 0
             for kind, _, w in mine:
                 if kind == "a":
-                    F[:, at : at + w] = _basis_products(basis.values, toeplitz, None, sl)
+                    F[:, at : at + w] = every
                 else:
                     np.multiply(products[:, k, None], hh if kind == "yy" else Hf[sl],
                                 out=F[:, at : at + w])
