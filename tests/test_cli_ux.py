@@ -151,6 +151,20 @@ def test_jobs_below_one_is_refused(jobs):
     assert done.exit_code == 2 and "--jobs" in done.stderr
 
 
+@pytest.mark.parametrize("resample, said", [
+    ("lines", "bootstrap over frequency lines"),
+    ("noise", "bootstrap of the noise model"),
+    ("auto", "bootstrap over frequency lines"),  # chain6 has no repeated records
+])
+def test_resample_chooses_what_the_replicates_resample_and_the_report_says(resample, said):
+    done = cli("identify", SAMPLE, "--resample", resample, "--json", *FAST)
+    report = json.loads(done.stdout)
+    assert done.exit_code == 0 and report["settings"]["resample"] == resample
+    assert sum(said in w for w in report["warnings"]) == 1
+    bad = cli("identify", SAMPLE, "--resample", "hits", *FAST)
+    assert bad.exit_code == 2 and "--resample" in bad.stderr
+
+
 def test_band_beyond_the_data_is_said_and_a_band_outside_refused():
     wide = cli("identify", SAMPLE, "--band", "5", "1000", "--json", *FAST)
     assert wide.exit_code == 0

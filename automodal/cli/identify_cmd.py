@@ -148,6 +148,12 @@ def _run_batch(input_path: str, outputs: tuple[str, ...], settings: Settings,
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of the bootstrap.")
 @click.option("--bootstrap", "n_bootstrap", type=click.IntRange(2, 100000), default=100,
               show_default=True, help="Bootstrap replicates.")
+@click.option("--resample", type=click.Choice(["auto", "lines", "records", "noise"]),
+              default="auto", show_default=True,
+              help="What each bootstrap replicate resamples: the repeated records, the "
+              "frequency lines, or fresh noise of the noise model around the reference "
+              "model (docs/method.md 4). auto: the records when their mean is the FRF, "
+              "else the lines. The report's warnings say which ran.")
 @click.option("--band", nargs=2, type=float, metavar="FMIN FMAX", default=None,
               help="Analysed band in Hz (default: the data's span).")
 @click.option("--order", "max_order", type=click.IntRange(4, 5000), default=None,
@@ -187,6 +193,7 @@ def identify(
     quiet: bool,
     seed: int,
     n_bootstrap: int,
+    resample: str,
     band: tuple[float, float] | None,
     max_order: int | None,
     jobs: int | None,
@@ -242,6 +249,7 @@ def identify(
             max_order=max_order,
             jobs=jobs,
             sub_bands=not one_band,
+            resample=resample,
         )
         from automodal.app.run import time_options
 
