@@ -163,6 +163,9 @@ def test_resample_chooses_what_the_replicates_resample_and_the_report_says(resam
     assert sum(said in w for w in report["warnings"]) == 1
     bad = cli("identify", SAMPLE, "--resample", "hits", *FAST)
     assert bad.exit_code == 2 and "--resample" in bad.stderr
+    none = cli("identify", SAMPLE, "--resample", "records", *FAST)
+    assert none.exit_code == 2 and none.stdout == ""
+    assert none.stderr.count("\n") == 1 and "needs at least two records" in none.stderr
 
 
 def test_band_beyond_the_data_is_said_and_a_band_outside_refused():
