@@ -79,8 +79,9 @@ class Settings:
         data have at least two and their mean is as precise an estimate as the FRF
         (:func:`automodal.core.noise.mean_as_precise`; not for H1 of random force),
         else the frequency lines; ``"records"`` or ``"lines"`` always; ``"noise"``
-        (needs the noise weighting) fresh noise of the noise model around the reference
-        model's FRF.
+        (needs the noise weighting) fresh noise of the noise model, times the reference
+        model's dispersion, around the reference model's FRF (``docs/method.md`` 4 says
+        why ``"auto"`` does not choose it).
     weighting : {"auto", "noise", "envelope"}
         ``"noise"``: lines and channels whitened by the noise model
         (:mod:`automodal.core.noise`), orders by a significance test of the whitened
