@@ -161,6 +161,9 @@ def test_resample_chooses_what_the_replicates_resample_and_the_report_says(resam
     report = json.loads(done.stdout)
     assert done.exit_code == 0 and report["settings"]["resample"] == resample
     assert sum(said in w for w in report["warnings"]) == 1
+
+
+def test_resample_refuses_an_unknown_choice_and_records_that_are_not_there():
     bad = cli("identify", SAMPLE, "--resample", "hits", *FAST)
     assert bad.exit_code == 2 and "--resample" in bad.stderr
     none = cli("identify", SAMPLE, "--resample", "records", *FAST)

@@ -25,6 +25,7 @@ from automodal.cli._common import (
     time_input_options,
 )
 from automodal.errors import InputError
+from automodal.settings import RESAMPLE_CHOICES
 
 if TYPE_CHECKING:
     from automodal.app.batch import FileOutcome
@@ -148,7 +149,7 @@ def _run_batch(input_path: str, outputs: tuple[str, ...], settings: Settings,
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of the bootstrap.")
 @click.option("--bootstrap", "n_bootstrap", type=click.IntRange(2, 100000), default=100,
               show_default=True, help="Bootstrap replicates.")
-@click.option("--resample", type=click.Choice(["auto", "lines", "records", "noise"]),
+@click.option("--resample", type=click.Choice(RESAMPLE_CHOICES),
               default="auto", show_default=True,
               help="What each bootstrap replicate resamples: the repeated records, the "
               "frequency lines, or fresh noise of the noise model around the reference "
