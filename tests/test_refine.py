@@ -228,3 +228,83 @@ def test_pipeline_intervals_cover_the_truth_over_50_noise_seeds():
     assert found == 50 * 6
     assert 0.88 <= np.mean(cover_f) <= 0.99, np.mean(cover_f)
     assert 0.88 <= np.mean(cover_z) <= 0.99, np.mean(cover_z)
+
+
+def _mode(ref: int, physical: bool, f: float, occurrence: float = 0.8, members: int = 80):
+    from automodal.result import IdentifiedMode
+
+    return IdentifiedMode(
+        id=ref, frequency_hz=f, frequency_std_hz=0.01, frequency_ci95_hz=(f - 0.02, f + 0.02),
+        damping_ratio=0.005, damping_std=1e-4, damping_ci95=(0.0048, 0.0052),
+        physicalness=0.9 if physical else 0.1, physical=physical, n_members=members,
+        mode_shape=np.ones(3, complex), mode_shape_std=np.zeros(3), mpc=1.0, cluster=ref,
+        cluster_dim=1, features={"occurrence": occurrence}, reference_mode=ref)
+
+
+def _two_modes_two_inputs(n_inputs: int, seed: int = 3):
+    """Two modes 0.5 % apart (one half-bandwidth), 1 % noise, seen by ``n_inputs``."""
+    rng = np.random.default_rng(seed)
+    w = 2 * np.pi * np.array([10.0, 10.05])
+    lam = w * (-0.005 + 1j * np.sqrt(1 - 0.005**2))
+    omega = 2 * np.pi * np.linspace(8, 12, 800)
+    s = 1j * omega
+    phi = np.array([[1.0, 0.3, -0.5], [0.2, 1.0, 0.8]])
+    L = np.array([[1.0, 0.1], [0.1, 1.0]])[:, :n_inputs]
+    H = sum(np.einsum("i,j,f->fij", phi[r], L[r], 1 / (s - lam[r]) + 1 / (s - lam[r].conj()))
+            for r in range(2))
+    level = 0.01 * np.sqrt(np.mean(np.abs(H) ** 2))
+    H = H + level * sim.complex_gaussian(H.shape, 1.0, rng)
+    return omega, H, np.full(H.shape, level**2), lam
+
+
+@pytest.mark.parametrize("n_inputs, promoted", [(2, True), (1, False)])
+def test_a_needed_companion_of_a_physical_mode_is_physical_with_two_inputs(n_inputs, promoted):
+    """The clustering called one of two near-coincident modes physical; the other is the
+    reference model's companion of it. With two inputs the refinement keeps it (the data
+    need it) and it is reported physical at its true frequency; with one input it is not
+    promoted (a single input does not tell a near-coincident pair's shapes apart)."""
+    from automodal.core.summary import refine_physical_modes
+
+    omega, H, variance, lam = _two_modes_two_inputs(n_inputs)
+    start = lam * (1 + 2e-4)
+    states = np.concatenate([start, start.conj()])
+    modes = [_mode(0, True, 10.0), _mode(1, False, 10.05)]
+    out = refine_physical_modes(modes, states, np.array([0, 1]), omega, H, variance)
+    second = [m for m in out if m.reference_mode == 1][0]
+    assert second.physical is promoted
+    if promoted:
+        assert second.estimator == "ml"
+        assert abs(second.frequency_hz - 10.05) < 3 * second.frequency_std_hz
+        assert all(m.physical for m in out)
+
+
+def test_a_companion_found_by_a_minority_of_replicates_stays_not_physical():
+    from automodal.core.summary import refine_physical_modes
+
+    omega, H, variance, lam = _two_modes_two_inputs(2)
+    states = np.concatenate([lam, lam.conj()])
+    modes = [_mode(0, True, 10.0), _mode(1, False, 10.05, occurrence=0.3, members=30)]
+    out = refine_physical_modes(modes, states, np.array([0, 1]), omega, H, variance)
+    assert not [m for m in out if m.reference_mode == 1][0].physical
+
+
+def test_a_companion_of_a_single_mode_is_not_promoted():
+    """A second pole beside one mode (two inputs, 1 % noise) is a split of it: it leaves
+    the model and nothing new is physical."""
+    from automodal.core.summary import refine_physical_modes
+
+    rng = np.random.default_rng(8)
+    w = 2 * np.pi * 10.0
+    lam = w * (-0.005 + 1j * np.sqrt(1 - 0.005**2))
+    omega = 2 * np.pi * np.linspace(8, 12, 800)
+    s = 1j * omega
+    H = np.einsum("i,j,f->fij", np.array([1.0, 0.3, -0.5]), np.array([1.0, 0.4]),
+                  1 / (s - lam) + 1 / (s - np.conj(lam)))
+    level = 0.01 * np.sqrt(np.mean(np.abs(H) ** 2))
+    H = H + level * sim.complex_gaussian(H.shape, 1.0, rng)
+    companion = lam + 0.3 * abs(lam.real)  # within NEAR_POLE half-bandwidths
+    states = np.array([lam, companion, np.conj(lam), np.conj(companion)])
+    modes = [_mode(0, True, 10.0), _mode(1, False, 10.03)]
+    out = refine_physical_modes(modes, states, np.array([0, 1]), omega, H,
+                                np.full(H.shape, level**2))
+    assert [m.physical for m in out] == [True, False]
