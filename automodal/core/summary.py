@@ -17,7 +17,7 @@ from automodal.core import clustering, physicalness
 from automodal.core.matching import mode_numbers
 from automodal.core.modal import ModeSet, mpc, normalise_shapes, unit_max_shapes
 from automodal.core.pole_map import PoleMap
-from automodal.core.refine import duplicate_poles, refine_poles
+from automodal.core.refine import PoleRefinement, duplicate_poles, refine_poles
 from automodal.result import IdentifiedMode
 
 
@@ -202,7 +202,8 @@ def _companion_vetoed(m: IdentifiedMode) -> bool:
 
 
 def _needed_companions(
-    omega: np.ndarray, H: np.ndarray, variance: np.ndarray, fit, k: int, fixed: np.ndarray
+    omega: np.ndarray, H: np.ndarray, variance: np.ndarray, fit: PoleRefinement, k: int,
+    fixed: np.ndarray,
 ) -> np.ndarray:
     """Which refined companions (``fit.poles[k:]``, after the ``k`` modes called physical)
     the data need beside the pole nearest to each (:func:`duplicate_poles` at the refined
@@ -243,7 +244,8 @@ def refine_physical_modes(
     poles, the companion giving way) is a mode of its own: the second of two near-coincident
     modes, which the clustering joined into one. With at least two inputs and two outputs
     its cluster becomes physical, with the refinement's statistics, unless it has one member
-    or a minority of the replicates found it. On the calibration seeds 281 and 283 (64
+    or a minority of the replicates found it (its ``physicalness``, the c-means score of its
+    cluster, is left as it was). On the calibration seeds 281 and 283 (64
     family files) this found 4 more clear modes (838 -> 842 of 866) for one more false mode
     (23 -> 24), the pairs of a velocity grid with 10 % H1 noise among them; with one input a
     near-coincident pair's second pole was found (14.108 Hz beside 14.076 Hz) but the other
