@@ -244,13 +244,15 @@ def refine_physical_modes(
     poles, the companion giving way) is a mode of its own: the second of two near-coincident
     modes, which the clustering joined into one. With at least two inputs and two outputs
     its cluster becomes physical, with the refinement's statistics, unless it has one member
-    or a minority of the replicates found it (its ``physicalness``, the c-means score of its
-    cluster, is left as it was). On the calibration seeds 281 and 283 (64
-    family files) this found 4 more clear modes (838 -> 842 of 866) for one more false mode
-    (23 -> 24), the pairs of a velocity grid with 10 % H1 noise among them; with one input a
-    near-coincident pair's second pole was found (14.108 Hz beside 14.076 Hz) but the other
-    promoted pole's shape was a mixture of a group of three, so a single input or output
-    promotes none. The 95 % intervals of a refined mode are ``estimate +- 1.96 std`` from the Fisher
+    or a minority of the replicates found it, or its reference mode represents other clusters
+    too (its ``physicalness``, the c-means score of its cluster, is left as it was). On the
+    calibration seeds 281 and 283 (64 family files) this found 4 more clear modes (838 -> 842
+    of 866) for one more false mode (23 -> 24), the pairs of a velocity grid with 10 % H1
+    noise among them; with one input a near-coincident pair's second pole was found
+    (14.108 Hz beside 14.076 Hz) but the other promoted pole's shape was a mixture of a
+    group of three, so a single input or output promotes none.
+
+    The 95 % intervals of a refined mode are ``estimate +- 1.96 std`` from the Fisher
     information and the noise model (``estimator = "ml"``); a mode whose refinement failed,
     and every other mode, keeps its bootstrap statistics.
 
@@ -292,15 +294,14 @@ def refine_physical_modes(
         needed = ~(duplicate_poles(omega, H, variance, free, fixed, expendable) & expendable)
         free = free[needed]
     fit = refine_poles(omega, H, variance, free, fixed)
-    n_free = free.size
-    kept = companions[needed[k:]] if companions.size else companions
+    kept = companions[needed[k:]]
     # a physical mode is a split resonance when the data do not need it beside another
     # physical mode (the companions that stayed are in the model, fixed)
     refined = np.flatnonzero(fit.refined[:k])
     duplicate = np.zeros(k, bool)
     duplicate[refined] = duplicate_poles(
         omega, H, variance, fit.poles[refined],
-        np.concatenate([fit.poles[np.setdiff1d(np.arange(n_free), refined)], fixed]))
+        np.concatenate([fit.poles[np.setdiff1d(np.arange(free.size), refined)], fixed]))
     # a companion the data still need beside the refined modes is a mode of its own (the
     # second of two near-coincident modes the clustering joined into one)
     promoted = (_needed_companions(omega, H, variance, fit, k, fixed) if min(H.shape[1:]) >= 2
@@ -311,10 +312,11 @@ def refine_physical_modes(
     f, f_std, z, z_std = fit.frequency_damping()
     ok = fit.refined
     slot = {int(m): j for j, m in enumerate(chosen)}
-    for c in np.flatnonzero(promoted):
+    owners = Counter(m.reference_mode for m in modes)
+    for c in np.flatnonzero(promoted):  # a companion's reference mode, one cluster's own
         ref_mode = np.flatnonzero(oscillatory == kept[c])
-        if ref_mode.size:
-            slot.setdefault(int(ref_mode[0]), k + int(c))
+        if ref_mode.size and owners[int(ref_mode[0])] == 1:
+            slot[int(ref_mode[0])] = k + int(c)
     out = []
     for m in modes:
         j = slot.get(m.reference_mode, -1)
@@ -322,7 +324,7 @@ def refine_physical_modes(
             out.append(m)
             continue
         if j >= k:  # a companion that stayed: physical on the likelihood ratio
-            if counts.get(m.reference_mode, 0) or _companion_vetoed(m):
+            if _companion_vetoed(m):
                 out.append(m)
                 continue
             m = replace(m, physical=True)
