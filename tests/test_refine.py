@@ -308,3 +308,68 @@ def test_a_companion_of_a_single_mode_is_not_promoted():
     out = refine_physical_modes(modes, states, np.array([0, 1]), omega, H,
                                 np.full(H.shape, level**2))
     assert [m.physical for m in out] == [True, False]
+
+
+def test_residue_shapes_are_the_rank_one_factor_whatever_the_channel_noise():
+    from automodal.core.refine import residue_shapes
+
+    rng = np.random.default_rng(2)
+    phi = rng.standard_normal((2, 5)) + 1j * rng.standard_normal((2, 5))
+    psi = rng.standard_normal((2, 3)) + 1j * rng.standard_normal((2, 3))
+    R = np.einsum("ri,rj->rij", phi, psi)
+    R = np.concatenate([R, np.full((1, 5, 3), np.nan)])  # a pole that was not refined
+    variance = rng.uniform(0.1, 10.0, (40, 5, 3))
+    shapes = residue_shapes(R, variance, np.array([1e-6, 1e-6, np.nan]))
+    assert shapes.shape == (5, 3)
+    for r in range(2):
+        ratio = shapes[:, r] / phi[r]
+        np.testing.assert_allclose(ratio, ratio[0], rtol=1e-10)
+    assert np.all(np.isnan(shapes[:, 2]))
+
+
+@pytest.mark.parametrize("noise", [0.0, 0.01])
+def test_a_refined_mode_reports_the_shape_of_the_fit(noise):
+    """The refined poles' shapes come from the fit's residues, not from the cluster's
+    (here deliberately wrong) shape: exact on noise-free data, MAC > 0.999 at 1 % noise
+    for two modes half a bandwidth apart."""
+    from automodal.core.modal import unit_max_shapes
+    from automodal.core.summary import refine_physical_modes
+
+    omega, H, variance, lam = _two_modes_two_inputs(2)
+    if noise == 0.0:
+        s = 1j * omega
+        phi = np.array([[1.0, 0.3, -0.5], [0.2, 1.0, 0.8]])
+        L = np.array([[1.0, 0.1], [0.1, 1.0]])
+        H = sum(np.einsum("i,j,f->fij", phi[r], L[r], 1 / (s - lam[r]) + 1 / (s - lam[r].conj()))
+                for r in range(2))
+    states = np.concatenate([lam, lam.conj()])
+    modes = [_mode(0, True, 10.0), _mode(1, True, 10.05)]
+    out = refine_physical_modes(modes, states, np.array([0, 1]), omega, H, variance)
+    true = unit_max_shapes(np.array([[1.0, 0.3, -0.5], [0.2, 1.0, 0.8]]).T)
+    for m in out:
+        assert m.estimator == "ml"
+        got = m.mode_shape
+        if noise == 0.0:
+            np.testing.assert_allclose(got, true[:, m.reference_mode], atol=1e-6)
+        else:
+            t = true[:, m.reference_mode]
+            mac = abs(np.vdot(got, t)) ** 2 / (np.vdot(got, got).real * np.vdot(t, t).real)
+            assert mac > 0.999
+        assert m.mpc > 0.99
+
+
+def test_a_residue_of_two_modes_or_within_its_error_gives_no_shape():
+    """A residue matrix of rank two beyond its error (a pole standing for two modes), or
+    one that does not stand out of its error, is not one mode's: NaN, the caller keeps its
+    own shape."""
+    from automodal.core.refine import residue_shapes
+
+    rng = np.random.default_rng(4)
+    phi = rng.standard_normal((2, 6)) + 1j * rng.standard_normal((2, 6))
+    psi = rng.standard_normal((2, 3)) + 1j * rng.standard_normal((2, 3))
+    two = np.einsum("ri,rj->ij", phi, psi)[None]
+    one = np.einsum("i,j->ij", phi[0], psi[0])[None]
+    variance = np.ones((30, 6, 3))
+    assert np.all(np.isnan(residue_shapes(two, variance, np.array([1e-4]))))
+    assert np.all(np.isfinite(residue_shapes(one, variance, np.array([1e-4]))))
+    assert np.all(np.isnan(residue_shapes(one, variance, np.array([10.0]))))

@@ -116,6 +116,12 @@ from its separable model (:func:`separable_ratio`) into account when the ratio l
 separable weights is that covariance to this share, and the cost of the exact one is
 saved."""
 
+RESIDUE_RANK_EDGE = 3.0
+"""A direction of a residue matrix counts (:func:`residue_shapes`) when its singular value
+exceeds this many times the largest its estimation error alone would give (the
+Marchenko-Pastur edge ``sigma (sqrt(ny) + sqrt(nu))``), as for the outputs' rank
+(:data:`automodal.core.whitening.RANK_EDGE`)."""
+
 DUPLICATE_LEVEL = 0.01
 """False-alarm rate of that test: a second pole is kept when one pole explains the data
 worse than this chance under the noise model. Measured on the calibration seeds 211, 214,
@@ -147,6 +153,14 @@ class PoleRefinement:
         Whether each pole was refined.
     iterations : int
         Gauss-Newton iterations of the last fit.
+    residues : ndarray, shape (m, ny, nu), complex
+        Residue ``R_r`` of each refined pole per FRF entry, in the data's units, from the
+        same fit (every other pole in the basis); NaN where ``refined`` is False.
+    residue_variance : ndarray, shape (m,)
+        Variance (``E |error|^2``) of each residue entry under the noise model, in units
+        of that entry's noise (the residue divided by the square root of the entry's
+        separable variance, :func:`separable_weights`); large where the pole's terms are
+        nearly collinear with another's. NaN where ``refined`` is False.
     """
 
     poles: np.ndarray
@@ -154,6 +168,8 @@ class PoleRefinement:
     dispersion: np.ndarray
     refined: np.ndarray
     iterations: int
+    residues: np.ndarray
+    residue_variance: np.ndarray
 
     def frequency_damping(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Natural frequency (Hz) and damping ratio of each pole with their standard
@@ -413,14 +429,14 @@ def _small_sample(clusters: float) -> float:
 
 def _whitened(
     omega: np.ndarray, H: np.ndarray, variance: np.ndarray
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``s = i omega``, the square root of the line weights and the whitened data
-    ``(N, E)`` of the separable noise model."""
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``s = i omega``, the square root of the line weights, the whitened data ``(N, E)``
+    of the separable noise model and its entry variances ``(E,)``."""
     N = H.shape[0]
     line_var, entry_var = separable_weights(np.asarray(variance, float).reshape(N, -1))
     sw = 1.0 / np.sqrt(line_var)
     Y = sw[:, None] * np.asarray(H).reshape(N, -1) / np.sqrt(entry_var)[None, :]
-    return 1j * np.asarray(omega, dtype=float), sw, Y
+    return 1j * np.asarray(omega, dtype=float), sw, Y, entry_var
 
 
 def _reach(start: np.ndarray, others: np.ndarray) -> np.ndarray:
@@ -484,8 +500,10 @@ def refine_poles(
     m = free0.size
     nan_cov = np.full((m, 2, 2), np.nan)
     if m == 0 or N < 2 * (2 * m + fixed.size + 1):
-        return PoleRefinement(free0.copy(), nan_cov, np.full(m, np.nan), np.zeros(m, bool), 0)
-    s, sw, Y = _whitened(omega, H, variance)
+        return PoleRefinement(free0.copy(), nan_cov, np.full(m, np.nan), np.zeros(m, bool), 0,
+                              np.full((m, *H.shape[1:]), np.nan, dtype=complex),
+                              np.full(m, np.nan))
+    s, sw, Y, entry_var = _whitened(omega, H, variance)
     reach = _reach(free0, fixed)
     ok = np.ones(m, bool)
     poles, it, prob = free0.copy(), 0, None
@@ -531,8 +549,34 @@ def refine_poles(
         ok[idx[singular]] = False
         poles[idx[singular]] = free0[idx[singular]]
         cov[idx[singular]] = np.nan
+    residues, residue_var = _residues(s, sw, Y, entry_var, poles, free0, fixed, ok)
     return PoleRefinement(poles=poles, covariance=cov, dispersion=disp, refined=ok,
-                          iterations=it)
+                          iterations=it, residues=residues.reshape(m, *H.shape[1:]),
+                          residue_variance=residue_var)
+
+
+def _residues(
+    s: np.ndarray, sw: np.ndarray, Y: np.ndarray, entry_var: np.ndarray, poles: np.ndarray,
+    start: np.ndarray, fixed: np.ndarray, ok: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Residues ``(m, E)`` (data units) of the refined poles ``poles[ok]`` with the others
+    (``start[~ok]`` and ``fixed``) in the basis, and the variance of each pole's whitened
+    residues under the noise model: the whitened data have unit complex variance, so the
+    real coefficients have ``(P^T P)^-1 / 2`` (``P`` the pole's stacked columns off the
+    rest of the basis) and a residue the sum of its two."""
+    m = poles.size
+    residues = np.full((m, Y.shape[1]), np.nan, dtype=complex)
+    variance = np.full(m, np.nan)
+    idx = np.flatnonzero(ok)
+    if idx.size == 0:
+        return residues, variance
+    prob = _Problem.make(s, sw, Y, np.concatenate([start[~ok], fixed]))
+    C = _fit(prob, poles[idx])[1]
+    residues[idx] = (C[0::2] + 1j * C[1::2]) * np.sqrt(entry_var)[None, :]
+    P = prob.off_fixed(_stack(sw[:, None] * _pair_columns(s, poles[idx])))
+    cov = 0.5 * np.diag(np.linalg.pinv(P.T @ P))
+    variance[idx] = cov[0::2] + cov[1::2]
+    return residues, variance
 
 
 def _covariance(
@@ -667,6 +711,58 @@ def _wald_and_local(
     return wald, np.maximum(local, 1.0)
 
 
+def residue_shapes(
+    residues: np.ndarray, variance: np.ndarray, residue_variance: np.ndarray
+) -> np.ndarray:
+    """Mode shapes from the residue matrices of a fit, where each is one mode's.
+
+    A mode's residue is rank one, ``R_r = phi_r psi_r^T`` (output shape times input
+    participation); the fit's estimate adds its own error, of variance
+    ``residue_variance`` per whitened entry. Whitened (each entry divided by the square
+    root of its separable noise variance, :func:`separable_weights`), a residue matrix
+    whose largest singular value stands out of that error (above :data:`RESIDUE_RANK_EDGE`
+    times the largest an ``ny x nu`` error matrix gives) and whose second does not (against
+    an ``(ny - 1) x (nu - 1)`` one) is one mode's: its shape is the dominant left singular
+    vector, the whitening of the outputs undone. Otherwise (a pole whose terms are nearly
+    collinear with a neighbour's, or that stands for two near-coincident modes) the shape
+    is NaN, and the caller keeps another estimate.
+
+    Parameters
+    ----------
+    residues : ndarray, shape (m, ny, nu), complex
+        Residue matrices (NaN for a pole not refined).
+    variance : ndarray, shape (N, ny, nu)
+        Noise variance of the FRF entries.
+    residue_variance : ndarray, shape (m,)
+        :attr:`PoleRefinement.residue_variance`.
+
+    Returns
+    -------
+    ndarray, shape (ny, m), complex
+        One shape per column (unnormalised), NaN where the residue is not one mode's.
+    """
+    R = np.asarray(residues, dtype=complex)
+    m, ny, nu = R.shape
+    V = np.asarray(variance, float)
+    entry = np.log(separable_weights(V.reshape(V.shape[0], -1))[1].reshape(ny, nu))
+    a = np.mean(entry, axis=1)  # output factor of the entries' variance
+    b = np.mean(entry - a[:, None], axis=0)  # and input factor
+    Rw = R * np.exp(-0.5 * a)[None, :, None] * np.exp(-0.5 * b)[None, None, :]
+    shapes = np.full((ny, m), np.nan, dtype=complex)
+    sigma = np.sqrt(np.asarray(residue_variance, float))
+    ok = np.all(np.isfinite(Rw), axis=(1, 2)) & np.isfinite(sigma)
+    if not ok.any():
+        return shapes
+    U, sv, _ = np.linalg.svd(Rw[ok], full_matrices=False)
+    first = sv[:, 0] > RESIDUE_RANK_EDGE * sigma[ok] * (np.sqrt(ny) + np.sqrt(nu))
+    second = sv[:, 1] if sv.shape[1] > 1 else np.zeros(sv.shape[0])
+    second_edge = RESIDUE_RANK_EDGE * sigma[ok] * (np.sqrt(ny - 1) + np.sqrt(nu - 1))
+    one = first & (second <= second_edge)
+    cols = np.flatnonzero(ok)[one]
+    shapes[:, cols] = (U[one, :, 0] * np.exp(0.5 * a)[None, :]).T
+    return shapes
+
+
 def duplicate_poles(
     omega: np.ndarray,
     H: np.ndarray,
@@ -722,7 +818,7 @@ def duplicate_poles(
         pairs = list({p for p in nearest.values() if p is not None})
     if not pairs:
         return dup
-    s, sw, Y = _whitened(omega, H, variance)
+    s, sw, Y, _ = _whitened(omega, H, variance)
     if Y.shape[0] < 2 * (2 * m + fixed.size + len(RESIDUAL_POWERS)):
         return dup
     wald, local = _wald_and_local(s, sw, Y, poles, fixed)

@@ -2,8 +2,9 @@
 
 Each surviving cluster (or, for a near-repeated cluster, each member rank) becomes one
 :class:`~automodal.result.IdentifiedMode`: medians, spreads and 95 % intervals of its
-members' frequency and damping, the reference model's shape with its members' spread,
-and the cluster's physicalness (anchored fuzzy c-means on three features).
+members' frequency and damping, the reference model's shape (a refined mode's: the
+refinement's) with its members' spread, and the cluster's physicalness (anchored fuzzy
+c-means on three features).
 """
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ from automodal.core import clustering, physicalness
 from automodal.core.matching import mode_numbers
 from automodal.core.modal import ModeSet, mpc, normalise_shapes, unit_max_shapes
 from automodal.core.pole_map import PoleMap
-from automodal.core.refine import PoleRefinement, duplicate_poles, refine_poles
+from automodal.core.refine import PoleRefinement, duplicate_poles, refine_poles, residue_shapes
 from automodal.result import IdentifiedMode
 
 
@@ -194,6 +195,16 @@ refined beside it, and leave the model when the data do not need them
 (:func:`automodal.core.refine.duplicate_poles`)."""
 
 
+def _fit_shape(m: IdentifiedMode, shape: np.ndarray) -> dict:
+    """The refinement's shape of a mode (:func:`automodal.core.refine.residue_shapes`),
+    normalised, with its MPC, as fields of :class:`IdentifiedMode`; the mode's own where
+    the fit's residue is not one mode's (NaN)."""
+    if not np.all(np.isfinite(shape)):
+        return {"mode_shape": m.mode_shape, "mpc": m.mpc}
+    unit = unit_max_shapes(shape[:, None])[:, 0]
+    return {"mode_shape": unit, "mpc": float(mpc(unit)[0])}
+
+
 def _companion_vetoed(m: IdentifiedMode) -> bool:
     """Whether the cluster of a companion the data need still cannot be physical: one
     member, or found by a minority of the replicates (:func:`physicalness.vetoed` without
@@ -253,8 +264,11 @@ def refine_physical_modes(
     group of three, so a single input or output promotes none.
 
     The 95 % intervals of a refined mode are ``estimate +- 1.96 std`` from the Fisher
-    information and the noise model (``estimator = "ml"``); a mode whose refinement failed,
-    and every other mode, keeps its bootstrap statistics.
+    information and the noise model (``estimator = "ml"``), and its shape is the fit's
+    where its residue matrix is one mode's (:func:`automodal.core.refine.residue_shapes`;
+    on the calibration seeds 281 and 283 this found 847 of 866 clear modes with 17 false,
+    against 842 and 24 with the reference model's shapes). A mode whose refinement failed,
+    and every other mode, keeps its bootstrap statistics and the reference model's shape.
 
     Parameters
     ----------
@@ -311,6 +325,7 @@ def refine_physical_modes(
                       covariance=pole_map.covariance(fit.poles, fit.covariance))
     f, f_std, z, z_std = fit.frequency_damping()
     ok = fit.refined
+    shapes = residue_shapes(fit.residues, variance, fit.residue_variance)
     slot = {int(m): j for j, m in enumerate(chosen)}
     owners = Counter(m.reference_mode for m in modes)
     for c in np.flatnonzero(promoted):  # a companion's reference mode, one cluster's own
@@ -335,6 +350,6 @@ def refine_physical_modes(
             frequency_ci95_hz=(float(f[j] - 1.96 * f_std[j]), float(f[j] + 1.96 * f_std[j])),
             damping_ratio=float(z[j]), damping_std=float(z_std[j]),
             damping_ci95=(float(z[j] - 1.96 * z_std[j]), float(z[j] + 1.96 * z_std[j])),
-            estimator="ml",
+            **_fit_shape(m, shapes[:, j]), estimator="ml",
         ))
     return numbered(out)
