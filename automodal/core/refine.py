@@ -718,8 +718,9 @@ def residue_shapes(
 
     A mode's residue is rank one, ``R_r = phi_r psi_r^T`` (output shape times input
     participation); the fit's estimate adds its own error, of variance
-    ``residue_variance`` per whitened entry. Whitened (each entry divided by the square
-    root of its separable noise variance, :func:`separable_weights`), a residue matrix
+    ``residue_variance`` per whitened entry. Whitened (each output and input divided by
+    the square root of its factor of the entries' separable noise variance,
+    :func:`separable_weights`, so that the rank-one structure is kept), a residue matrix
     whose largest singular value stands out of that error (above :data:`RESIDUE_RANK_EDGE`
     times the largest an ``ny x nu`` error matrix gives) and whose second does not (against
     an ``(ny - 1) x (nu - 1)`` one) is one mode's: its shape is the dominant left singular
