@@ -241,8 +241,9 @@ def _mode(ref: int, physical: bool, f: float, occurrence: float = 0.8, members: 
         cluster_dim=1, features={"occurrence": occurrence}, reference_mode=ref)
 
 
-def _two_modes_two_inputs(n_inputs: int, seed: int = 3):
-    """Two modes 0.5 % apart (one half-bandwidth), 1 % noise, seen by ``n_inputs``."""
+def _two_modes_two_inputs(n_inputs: int, seed: int = 3, noise: float = 0.01):
+    """Two modes 0.5 % apart (one half-bandwidth), seen by ``n_inputs``, with ``noise``
+    (relative to the RMS; the variance returned is that of 1 % whatever it is)."""
     rng = np.random.default_rng(seed)
     w = 2 * np.pi * np.array([10.0, 10.05])
     lam = w * (-0.005 + 1j * np.sqrt(1 - 0.005**2))
@@ -253,7 +254,7 @@ def _two_modes_two_inputs(n_inputs: int, seed: int = 3):
     H = sum(np.einsum("i,j,f->fij", phi[r], L[r], 1 / (s - lam[r]) + 1 / (s - lam[r].conj()))
             for r in range(2))
     level = 0.01 * np.sqrt(np.mean(np.abs(H) ** 2))
-    H = H + level * sim.complex_gaussian(H.shape, 1.0, rng)
+    H = H + (noise / 0.01) * level * sim.complex_gaussian(H.shape, 1.0, rng)
     return omega, H, np.full(H.shape, level**2), lam
 
 
@@ -335,13 +336,7 @@ def test_a_refined_mode_reports_the_shape_of_the_fit(noise):
     from automodal.core.modal import unit_max_shapes
     from automodal.core.summary import refine_physical_modes
 
-    omega, H, variance, lam = _two_modes_two_inputs(2)
-    if noise == 0.0:
-        s = 1j * omega
-        phi = np.array([[1.0, 0.3, -0.5], [0.2, 1.0, 0.8]])
-        L = np.array([[1.0, 0.1], [0.1, 1.0]])
-        H = sum(np.einsum("i,j,f->fij", phi[r], L[r], 1 / (s - lam[r]) + 1 / (s - lam[r].conj()))
-                for r in range(2))
+    omega, H, variance, lam = _two_modes_two_inputs(2, noise=noise)
     states = np.concatenate([lam, lam.conj()])
     modes = [_mode(0, True, 10.0), _mode(1, True, 10.05)]
     out = refine_physical_modes(modes, states, np.array([0, 1]), omega, H, variance)
