@@ -104,15 +104,18 @@ def merge_sub_bands(
 def _orders(results: Sequence[Result], plan: Sequence[SubBand]) -> dict:
     """``orders``: each sub-band's own (with its core, analysed band and peaks), and the
     summary keys of a single run: ``n0`` the sum over sub-bands (the states of the whole
-    band), ``reference`` the largest sub-band reference order."""
+    band), ``reference`` the largest sub-band reference order, ``form`` the sub-bands' when
+    they agree, else ``"mixed"``."""
     bands = [{"core_hz": list(b.core_hz), "analysed_hz": list(b.analysed_hz),
               "n_peaks": b.n_peaks, **r.orders} for b, r in zip(plan, results)]
     first = results[0].orders
+    forms = {r.orders.get("form") for r in results}
     return {
         "n0": int(sum(r.orders["n0"] for r in results)),
         "n0_rule": "sub-bands",
         "reference": int(max(r.orders["reference"] for r in results)),
         "weighting": first.get("weighting"),
+        "form": forms.pop() if len(forms) == 1 else "mixed",
         "window_decay_per_s": first.get("window_decay_per_s"),
         "discrete_sample_rate_hz": first.get("discrete_sample_rate_hz"),
         "sub_bands": bands,

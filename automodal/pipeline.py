@@ -122,6 +122,14 @@ class Prepared:
     noise: NoiseEstimate | None = None  # the noise model of the analysed FRF (un-oriented)
     variance: np.ndarray | None = None  # its variance, oriented and channel-scaled like Hs,
     # when the identification is weighted by it (weighting "noise")
+    factor: np.ndarray | None = None  # (N,): H is the receptance form H_model times this
+    # (synthesis.quantity_factor; None: the FRF is identified as it is)
+
+    @property
+    def H_model(self) -> np.ndarray:
+        """The FRF in the form the subspace models fit (``Hs`` before channel scaling): the
+        receptance form of a mobility or accelerance, else ``H``."""
+        return self.H if self.factor is None else self.H / self.factor[:, None, None]
 
     @property
     def weighting(self) -> str:
@@ -132,13 +140,22 @@ class Prepared:
     def enveloped(self) -> Prepared:
         """The same preparation with envelope line weights and RMS channel scales (the
         noise model kept for the intervals)."""
-        scales, Hs, weights, _ = _weighted(self.H, None)
+        scales, Hs, weights, _ = _weighted(self.H_model, None)
         return replace(self, scales=scales, Hs=Hs, line_weights=weights, variance=None)
 
     @property
     def noise_variance(self) -> np.ndarray | None:
         """The noise variance oriented like ``H`` (data units), or ``None``."""
         return None if self.noise is None else _oriented(self.noise.variance, self.reciprocal)
+
+    @property
+    def model_noise_variance(self) -> np.ndarray | None:
+        """The noise variance of :attr:`H_model` (data units over ``|factor|^2``), or
+        ``None``."""
+        v = self.noise_variance
+        if v is None or self.factor is None:
+            return v
+        return v / (np.abs(self.factor) ** 2)[:, None, None]
 
     pole_map: PoleMap = field(default_factory=PoleMap)  # model poles -> the structure's
 
@@ -148,14 +165,21 @@ class Prepared:
         return 2.0 * np.pi * float(self.frequency[0]), 2.0 * np.pi * float(self.frequency[-1])
 
 
-def prepare(data: FRFData, s: Settings, warnings: list[str]) -> Prepared:
+def prepare(
+    data: FRFData, s: Settings, warnings: list[str], receptance: bool | None = None
+) -> Prepared:
     """Band, data checks, reciprocity, bilinear map, channel scaling and line weights.
 
     The first steps of :func:`identify`, also used by the benchmarks so that they time
-    exactly what the pipeline runs. Warnings are appended to ``warnings``.
+    exactly what the pipeline runs. Warnings are appended to ``warnings``. ``receptance``:
+    whether a mobility or accelerance is identified in its receptance form; ``None``
+    chooses (:func:`automodal.core.checks.identified_form`), a sub-band keeps its band's
+    choice.
     """
     freq, H, band = select_band(data, s.band_hz, warnings)
-    data, freq, H = checks.prepare(data, freq, H, warnings)
+    operational = data.attributes.get("analysis") == "operational"
+    power = 0 if operational else quantity_power(data.quantity)
+    data, freq, H = checks.prepare(data, freq, H, warnings, power)
     noise = None
     try:
         noise = _estimate_noise(data, freq, H)
@@ -169,15 +193,21 @@ def prepare(data: FRFData, s: Settings, warnings: list[str]) -> Prepared:
     except ValueError as exc:
         raise InputError(f"attribute discrete_sample_rate_hz: {exc}", data.source) from None
     T = default_scale(omega[0], omega[-1])
-    weighting = s.weighting_for(data.attributes.get("analysis") == "operational")
-    scales, Hs, weights, variance = _weighted(
-        H, None if noise is None or weighting != "noise"
-        else _oriented(noise.variance, reciprocal))
-    return Prepared(
+    weighting = s.weighting_for(operational)
+    # a mobility or an accelerance may be flatter in its receptance form: the models then
+    # need not reproduce the trend (an accelerance's rise from 0 Hz)
+    if receptance is None:
+        receptance = checks.identified_form(freq, H, power)[0]
+    factor = synthesis.quantity_factor(2.0 * np.pi * freq, power, pole_map.shift) if (
+        receptance and power > 0) else None
+    p = Prepared(
         data=data, frequency=freq, H=H, band_hz=band, reciprocal=reciprocal, omega=omega, T=T,
-        z=to_unit_circle(omega, T), scales=scales, Hs=Hs, line_weights=weights,
-        noise=noise, variance=variance, pole_map=pole_map,
+        z=to_unit_circle(omega, T), scales=np.ones(H.shape[1]), Hs=H, line_weights=np.ones(
+            freq.size), noise=noise, factor=factor, pole_map=pole_map,
     )
+    scales, Hs, weights, variance = _weighted(
+        p.H_model, p.model_noise_variance if weighting == "noise" else None)
+    return replace(p, scales=scales, Hs=Hs, line_weights=weights, variance=variance)
 
 
 def pole_map_of(data: FRFData) -> PoleMap:
@@ -346,20 +376,22 @@ def input_stage(
 def _identify_sub_bands(
     data: FRFData, s: Settings, plan: list[sub_bands.SubBand], warnings: list[str],
     progress: ProgressCallback | None, t0: float, order_of_whole: int,
-    part: bool = False,
+    part: bool = False, receptance: bool | None = None,
 ) -> Result:
     """One identification per sub-band of ``plan``, merged
     (:func:`automodal.band_merge.merge_sub_bands`); ``warnings`` are the whole band's so
     far, ``t0`` when the run started, ``order_of_whole`` the reference order one model of
-    the band would have had, ``part`` as in :func:`_identify`."""
+    the band would have had, ``part`` and ``receptance`` (the band's form, kept by its
+    sub-bands) as in :func:`_identify`."""
     results = [_identify(data, replace(s, band_hz=b.analysed_hz),
                          within(progress, f"sub-band {i} of {len(plan)}"), part=True,
-                         parent_order=order_of_whole)
+                         parent_order=order_of_whole, receptance=receptance)
                for i, b in enumerate(plan, 1)]
     if any(r.shape_channels != results[0].shape_channels for r in results):
         # the data checks dropped different channels in different sub-bands: the shapes
         # cannot be put side by side, so the band is identified as one
-        return _identify(data, replace(s, sub_bands=False), progress, part)
+        return _identify(data, replace(s, sub_bands=False), progress, part,
+                         receptance=receptance)
     warnings.append(
         f"[{plan[0].analysed_hz[0]:g}, {plan[-1].analysed_hz[1]:g}] Hz was identified in"
         f" {len(plan)} sub-bands, cut at valleys between resonance"
@@ -402,12 +434,14 @@ def _choose_orders(
 
 def _identify(
     data: FRFData, s: Settings, progress: ProgressCallback | None, part: bool = False,
-    parent_order: int | None = None,
+    parent_order: int | None = None, receptance: bool | None = None,
 ) -> Result:
     """:func:`identify` with BLAS limited by the caller (``part``: one sub-band of a split
     band, whose modes' resolution warnings the merged result gives; ``parent_order``: the
     reference order of the band it was split from, which its own must be below for it to be
-    split again)."""
+    split again; ``receptance``: the form identified, as for :func:`prepare`; a sub-band
+    keeps its band's, chosen on the band's whole magnitude trend rather than on a part of
+    it cut beside a peak)."""
     t0 = time.perf_counter()
     analysis = data.attributes.get("time_analysis")
     warnings: list[str] = [] if part or not isinstance(analysis, dict) else list(
@@ -415,7 +449,7 @@ def _identify(
     tell(progress, "checks")
     # a sub-band's data checks repeat the whole band's, and its edges are our cuts: its
     # warnings about them (an edge on a resonance, no peak) would only mislead
-    p = prepare(data, s, [] if part else warnings)
+    p = prepare(data, s, [] if part else warnings, receptance)
     rank = None if p.variance is None else whitening.output_rank(p.Hs, p.variance)
     split_work = sub_bands.WORK_LIMIT if s.sub_bands and s.max_order is None else None
     tell(progress, "orders")
@@ -436,7 +470,7 @@ def _identify(
                                                            s.zeta_max, p.pole_map))
         if len(plan) > 1:  # a sub-band too costly is split again in its own run
             return _identify_sub_bands(data, s, plan, warnings, progress, t0,
-                                       choice.reference, part)
+                                       choice.reference, part, p.factor is not None)
     if split_work is not None and (n_bands > 1 or choice.reference >= (parent_order or 0) > 0):
         # no split after all: the scan may have ended early, at a stage whose order had not
         # settled (a 9-DOF chain over 51 201 lines: n0 = 56 there against 36 when scanned on)
@@ -484,7 +518,8 @@ def _identify(
         warnings=warnings,
         poles=PoleTable.from_poles(reps.poles, clusters.labels, reps.replicate),
         band_hz=(float(p.band_hz[0]), float(p.band_hz[1])),
-        orders=_orders_info(choice, ref, reps.n_qr, p.T, p.weighting, p.pole_map),
+        orders=_orders_info(choice, ref, reps.n_qr, p.T, p.weighting, p.pole_map,
+                            "measured" if p.factor is None else "receptance"),
         runtime_s=time.perf_counter() - t0,
         reference_model=ref.model,
         reciprocity=p.reciprocal,
@@ -530,6 +565,8 @@ def _replicates(
         records = None
     if records is not None:
         rw = bootstrap.record_weights(records.shape[0], s.n_bootstrap, rng)
+        if p.factor is not None:  # in the models' form, as Hs
+            records = records / p.factor[None, :, None, None]
         reps = replicates.run_record_replicates(
             ref.basis, records / p.scales[None, None, :, None], n, p.T, rw, p.line_weights,
             s.jobs, progress,
@@ -567,10 +604,11 @@ def _replicates(
 
 def _orders_info(
     choice: order.OrderChoice, ref: reference.Reference, n_qr: int, T: float,
-    weighting: str, pole_map: PoleMap,
+    weighting: str, pole_map: PoleMap, form: str,
 ) -> dict[str, object]:
     """``Result.orders``: the scan, the orders chosen and how the models were computed
-    (``weighting``: the one that ran, ``"noise"`` or ``"envelope"``; ``window_decay_per_s``
+    (``weighting``: the one that ran, ``"noise"`` or ``"envelope"``; ``form``: the FRF's
+    the models fitted, ``"measured"`` or ``"receptance"``; ``window_decay_per_s``
     and ``discrete_sample_rate_hz``: how the model's poles became the structure's, see
     :class:`~automodal.core.pole_map.PoleMap`)."""
     return {
@@ -582,6 +620,7 @@ def _orders_info(
         "block_rows": int(ref.q),
         "basis": "monomial" if ref.basis.monomial else "orthonormal",
         "weighting": weighting,
+        "form": form,
         "bilinear_T": float(T),
         "replicates_on_qr_path": int(n_qr),
         "reference_path": ref.model.path,

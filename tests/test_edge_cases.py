@@ -176,27 +176,38 @@ def test_extreme_dynamic_range_between_channels_1e_12_to_1e3():
     assert_modes(result, true)
 
 
-def low_frequency_accelerance(f_min: float) -> tuple[FRFData, np.ndarray]:
+def low_frequency_accelerance(f_min: float, quantity: str = "acceleration"
+                              ) -> tuple[FRFData, np.ndarray]:
     """Accelerance of a light 3-DOF chain on log-spaced lines from ``f_min`` Hz: its
-    magnitude rises like f^2 from far below the modes (about 1e-12 to 1e3 from 2 uHz)."""
+    magnitude rises like f^2 from far below the modes (about 1e-12 to 1e3 from 2 uHz).
+    ``quantity`` is what the file says it is: ``"displacement"`` makes it a receptance
+    whose magnitude trend is all in the identified form."""
     system = sim.damp(sim.chain(3, mass=0.01, stiffness=1e2), zeta=0.01)
     true = sim.natural_frequencies_hz(system)
     lines = np.geomspace(f_min, 1.3 * true.max(), 1500)
     data, _ = sim.simulate_test(system, range(3), [2], lines, "acceleration", noise=0.01,
                                 seed=0)
-    return data, true
+    return dataclasses.replace(data, quantity=quantity), true
+
+
+def test_accelerance_from_far_below_its_modes_is_identified_as_a_receptance():
+    """Its receptance form is flat below the modes: no trend to weigh, every mode found."""
+    data, true = low_frequency_accelerance(2e-6)
+    assert np.abs(data.frf).min() < 1e-11 and np.abs(data.frf).max() > 1e3
+    result = run(data)
+    assert not warned(result, "the FRF magnitude spans")
+    assert_modes(result, true)
 
 
 def test_extreme_dynamic_range_within_the_band_is_identified_with_a_warning():
-    data, true = low_frequency_accelerance(1e-3)  # 8.2 decades of trend
+    data, true = low_frequency_accelerance(1e-3, "displacement")  # 8.2 decades of trend
     result = run(data)
     assert warned(result, "the FRF magnitude spans", "decades")
     assert_modes(result, true)
 
 
 def test_extreme_dynamic_range_beyond_double_precision_is_refused_in_one_line(tmp_path):
-    data, _ = low_frequency_accelerance(2e-6)
-    assert np.abs(data.frf).min() < 1e-11 and np.abs(data.frf).max() > 1e3
+    data, _ = low_frequency_accelerance(2e-6, "displacement")
     with pytest.raises(InputError, match=r"decades .* narrow the band \(--band FMIN FMAX\)"):
         run(data)
     path = tmp_path / "range.h5"
@@ -589,3 +600,20 @@ def test_same_seed_gives_byte_identical_modes_whatever_jobs_run_after_run(tmp_pa
     assert cli("identify", str(SAMPLE), "-o", str(other), "--bootstrap", "20", "--seed", "6",
                "--jobs", "1", "--quiet").returncode == 0
     assert modes_text(other) != texts[0]
+
+
+def test_the_flatter_form_is_identified():
+    """An accelerance rising from far below its modes is flatter as a receptance; the same
+    FRF under a noise floor that dominates its lowest lines is flatter as measured; a
+    receptance (power 0) is always identified as it is."""
+    data, _ = low_frequency_accelerance(1e-3)
+    freq, H = data.frequency, data.frf
+    as_receptance, decades = checks.identified_form(freq, H, 2)
+    assert as_receptance and decades == pytest.approx(
+        checks.trend_decades(H / ((2 * np.pi * freq) ** 2)[:, None, None]))
+    assert checks.trend_decades(H) > decades + 5
+    floor = 1e-3 * np.abs(H).max()
+    rng = np.random.default_rng(0)
+    noisy = H + floor * (rng.standard_normal(H.shape) + 1j * rng.standard_normal(H.shape))
+    assert checks.identified_form(freq, noisy, 2) == (False, checks.trend_decades(noisy))
+    assert checks.identified_form(freq, H, 0) == (False, checks.trend_decades(H))

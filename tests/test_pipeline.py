@@ -11,6 +11,7 @@ import cases
 import numpy as np
 import pytest
 
+from automodal.frfdata import FRFData
 from automodal.pipeline import identify
 from automodal.settings import Settings
 
@@ -123,19 +124,28 @@ def test_cli_too_few_lines_for_the_asked_order(tmp_path):
 
 
 def test_roving_hammer_uses_reciprocity():
+    """8 hammer points, one accelerometer: the 8 modes on each of 6 noise seeds, shapes over
+    the inputs. A false mode on at most one seed: seed 1 gives one at 38.99 Hz, at the top
+    of the band, with an unresolved damping (warned), since the accelerance is identified
+    in its receptance form (``checks.identified_form``), whose fall above the last mode a
+    model of the modes must reproduce; none on the accelerance as measured."""
     from automodal.core import simulate as sim
 
     system = sim.damp(sim.chain(8), zeta=0.01)
-    data, modes = sim.simulate_test(system, [7], range(8), sim.frequency_lines(40, 1500),
-                                    "acceleration", noise=0.01, seed=1)
-    result = identify(data, Settings(seed=0, n_bootstrap=30, jobs=1))
-    assert result.reciprocity
-    assert any("reciprocity" in w for w in result.warnings)
-    found = np.array([m.frequency_hz for m in result.physical_modes])
-    assert found.size == 8
-    assert np.max(np.abs(found - modes.frequency_hz) / modes.frequency_hz) < 1e-3
-    assert all(m.mode_shape.size == 8 for m in result.modes)
-    assert result.shape_channels == data.input_names
+    extra = 0
+    for seed in range(1, 7):
+        data, modes = sim.simulate_test(system, [7], range(8), sim.frequency_lines(40, 1500),
+                                        "acceleration", noise=0.01, seed=seed)
+        result = identify(data, Settings(seed=0, n_bootstrap=30, jobs=1))
+        assert result.reciprocity
+        assert any("reciprocity" in w for w in result.warnings)
+        found = np.array([m.frequency_hz for m in result.physical_modes])
+        err = np.abs(found[:, None] - modes.frequency_hz[None, :]) / modes.frequency_hz
+        assert np.all(np.min(err, axis=0) < 1e-3), (seed, found)
+        extra += found.size - 8
+        assert all(m.mode_shape.size == 8 for m in result.modes)
+        assert result.shape_channels == data.input_names
+    assert extra <= 1
 
 
 def test_record_bootstrap_resamples_the_records():
@@ -208,3 +218,49 @@ def test_a_short_noise_record_finds_no_physical_mode_and_does_not_crash():
     data = FRFData(frequency=np.arange(20) * 0.25, frf=frf, quantity="displacement")
     result = identify(data, Settings(seed=1))
     assert not any(m.physical for m in result.modes)
+
+
+def _chain_with_records(quantity: str) -> tuple[FRFData, np.ndarray]:
+    """A 6-DOF chain's FRF (6 sensors, one force) as ``quantity``, the mean of 6 records
+    with 5 % proportional noise; the same noise whatever the quantity (a receptance's
+    records times ``(j w)^p``)."""
+    from automodal.core import simulate as sim
+    from automodal.quantities import quantity_power
+
+    system = sim.damp(sim.chain(6), zeta=0.01)
+    true = sim.natural_frequencies_hz(system)
+    freq = sim.frequency_lines(1.25 * true.max(), 800)
+    rng = np.random.default_rng(4)
+    clean = sim.frf(system, freq, range(6), [5])
+    factor = (2j * np.pi * freq) ** quantity_power(quantity)
+    recs = np.stack([sim.add_noise(clean, 0.05, rng) for _ in range(6)])
+    recs = recs * factor[None, :, None, None]
+    data = FRFData(frequency=freq, frf=recs.mean(axis=0), records=recs, quantity=quantity)
+    return data, true
+
+
+@pytest.mark.parametrize("quantity", ["velocity", "acceleration"])
+def test_mobility_and_accelerance_are_identified_as_their_receptance(quantity):
+    """From 0.04 Hz, far below the first mode, the receptance form is the flatter one and
+    is identified. Dividing by ``(j w)^p`` (and the noise variance by ``w^(2p)``) leaves
+    the whitened data as they were, so the orders and the subspace poles are those of the
+    receptance with the same noise; the refined poles differ by less than half their
+    standard deviation (the refinement fits the data as measured)."""
+    receptance, true = _chain_with_records("displacement")
+    data, _ = _chain_with_records(quantity)
+    settings = Settings(seed=2, n_bootstrap=20, jobs=1)
+    r0, r1 = identify(receptance, settings), identify(data, settings)
+    assert r0.orders["form"] == "measured" and r1.orders["form"] == "receptance"
+    for key in ("n0", "reference", "weighting"):
+        assert r1.orders[key] == r0.orders[key], key
+    assert len(r1.modes) == len(r0.modes)
+    for m0, m1 in zip(r0.modes, r1.modes):
+        assert m1.physical == m0.physical and m1.estimator == m0.estimator
+        if m0.estimator == "ml":  # refined on the data as measured: its own residual terms
+            assert abs(m1.frequency_hz - m0.frequency_hz) < 0.5 * m0.frequency_std_hz
+            assert abs(m1.damping_ratio - m0.damping_ratio) < 0.5 * m0.damping_std
+        else:
+            assert m1.frequency_hz == pytest.approx(m0.frequency_hz, rel=1e-8)
+            assert m1.damping_ratio == pytest.approx(m0.damping_ratio, rel=1e-6, abs=1e-12)
+    found = np.array([m.frequency_hz for m in r1.physical_modes])
+    assert all(np.min(np.abs(found - f) / f) < 2e-3 for f in true), found

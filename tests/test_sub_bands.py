@@ -157,3 +157,20 @@ def test_stable_frequencies_are_the_poles_that_stay_put():
     # natural frequencies of the three modes; the wandering pole is left out
     np.testing.assert_allclose(got, np.abs(lam) / (2 * np.pi), rtol=1e-9)
     assert stable_frequencies([m2], T, (0.5, 20.0), 0.2).size == 0
+
+
+def test_sub_bands_keep_the_form_chosen_on_the_whole_band(split_everything):
+    """A sub-band cut beside a peak has a trend that says little: the band's form is
+    chosen once, and every sub-band is identified in it."""
+    from automodal.core import simulate as sim
+
+    system = sim.damp(sim.chain(6), zeta=0.01)
+    freq = sim.frequency_lines(1.25 * sim.natural_frequencies_hz(system).max(), 1500)
+    data, modes = sim.simulate_test(system, [5], [5], freq, "acceleration", noise=0.01, seed=0)
+    result = identify(data, Settings(seed=0, n_bootstrap=10))
+    bands = result.orders["sub_bands"]
+    assert len(bands) >= 2
+    assert result.orders["form"] == "receptance"  # a rise from 0.03 Hz to 6 modes
+    assert [b["form"] for b in bands] == ["receptance"] * len(bands)
+    found = np.array([m.frequency_hz for m in result.physical_modes])
+    assert all(np.min(np.abs(found - f) / f) < 1e-3 for f in modes.frequency_hz)

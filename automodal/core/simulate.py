@@ -23,6 +23,7 @@ import numpy as np
 import scipy.linalg
 
 from automodal.core.modal import unit_max_shapes
+from automodal.core.synthesis import quantity_factor
 from automodal.frfdata import QUANTITIES, FRFData
 from automodal.quantities import quantity_power
 
@@ -478,7 +479,7 @@ def _check_quantity(quantity: str) -> None:
 def _quantity_factor(omega: np.ndarray, quantity: str) -> np.ndarray:
     """``(j w)^p`` that turns receptance into the given quantity."""
     _check_quantity(quantity)
-    return (1j * omega) ** quantity_power(quantity)
+    return quantity_factor(omega, quantity_power(quantity))
 
 
 def frf(

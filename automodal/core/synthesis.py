@@ -143,6 +143,34 @@ def pole_basis(omega: np.ndarray, lam: np.ndarray, power: int, residuals: bool) 
     return np.hstack(columns) * jw**power
 
 
+def quantity_factor(omega: np.ndarray, power: int, shift: float = 0.0) -> np.ndarray:
+    """``(j w + shift)^p``: what a receptance is multiplied by to be the measured quantity.
+
+    Dividing an FRF by it gives its receptance form, and its noise variance is divided by
+    ``|(j w + shift)^p|^2``, so the whitened data (FRF over noise standard deviation) are
+    the same up to a constant phase. The poles and the mode shapes are unchanged; the
+    residues are divided by ``(lambda_r + shift)^p``.
+
+    Parameters
+    ----------
+    omega : ndarray, shape (N,)
+        Angular frequencies (rad/s), positive.
+    power : int
+        ``p``: 0 receptance, 1 mobility, 2 accelerance.
+    shift : float
+        An exponential window's decay (1/s): a windowed accelerance is the windowed
+        receptance times ``(j w + shift)^2``, the factor evaluated where the window
+        moved the poles to.
+
+    Returns
+    -------
+    ndarray, shape (N,), complex
+    """
+    if power not in (0, 1, 2):
+        raise ValueError(f"power must be 0, 1 or 2, got {power!r}")
+    return (1j * np.asarray(omega, dtype=float) + float(shift)) ** power
+
+
 def normalised_error(H: np.ndarray, S: np.ndarray) -> np.ndarray:
     """``sum |H - S|^2 / sum |H|^2`` over the lines (axis 0), per channel; NaN where the
     measured channel is all zero."""
