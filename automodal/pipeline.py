@@ -196,7 +196,7 @@ def prepare(
     weighting = s.weighting_for(operational)
     # a mobility or an accelerance may be flatter in its receptance form: the models then
     # need not reproduce the trend (an accelerance's rise from 0 Hz)
-    if receptance is None:
+    if receptance is None and power > 0:
         receptance = checks.identified_form(freq, H, power)[0]
     factor = synthesis.quantity_factor(2.0 * np.pi * freq, power, pole_map.shift) if (
         receptance and power > 0) else None
