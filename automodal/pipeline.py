@@ -129,7 +129,7 @@ class Prepared:
     def H_model(self) -> np.ndarray:
         """The FRF in the form the subspace models fit (``Hs`` before channel scaling): the
         receptance form of a mobility or accelerance, else ``H``."""
-        return self.H if self.factor is None else self.H / self.factor[:, None, None]
+        return _in_model_form(self.H, self.factor)
 
     @property
     def weighting(self) -> str:
@@ -153,9 +153,7 @@ class Prepared:
         """The noise variance of :attr:`H_model` (data units over ``|factor|^2``), or
         ``None``."""
         v = self.noise_variance
-        if v is None or self.factor is None:
-            return v
-        return v / (np.abs(self.factor) ** 2)[:, None, None]
+        return None if v is None else _in_model_form(v, self.factor, True)
 
     pole_map: PoleMap = field(default_factory=PoleMap)  # model poles -> the structure's
 
@@ -179,7 +177,7 @@ def prepare(
     freq, H, band = select_band(data, s.band_hz, warnings)
     operational = data.attributes.get("analysis") == "operational"
     power = 0 if operational else quantity_power(data.quantity)
-    data, freq, H = checks.prepare(data, freq, H, warnings, power)
+    data, freq, H, flatter = checks.prepare(data, freq, H, warnings, power)
     noise = None
     try:
         noise = _estimate_noise(data, freq, H)
@@ -196,18 +194,17 @@ def prepare(
     weighting = s.weighting_for(operational)
     # a mobility or an accelerance may be flatter in its receptance form: the models then
     # need not reproduce the trend (an accelerance's rise from 0 Hz)
-    if receptance is None and power > 0:
-        receptance = checks.identified_form(freq, H, power)[0]
     factor = synthesis.quantity_factor(2.0 * np.pi * freq, power, pole_map.shift) if (
-        receptance and power > 0) else None
-    p = Prepared(
+        flatter if receptance is None else receptance) and power > 0 else None
+    variance = None
+    if noise is not None and weighting == "noise":
+        variance = _in_model_form(_oriented(noise.variance, reciprocal), factor, True)
+    scales, Hs, weights, variance = _weighted(_in_model_form(H, factor), variance)
+    return Prepared(
         data=data, frequency=freq, H=H, band_hz=band, reciprocal=reciprocal, omega=omega, T=T,
-        z=to_unit_circle(omega, T), scales=np.ones(H.shape[1]), Hs=H, line_weights=np.ones(
-            freq.size), noise=noise, factor=factor, pole_map=pole_map,
+        z=to_unit_circle(omega, T), scales=scales, Hs=Hs, line_weights=weights,
+        noise=noise, variance=variance, factor=factor, pole_map=pole_map,
     )
-    scales, Hs, weights, variance = _weighted(
-        p.H_model, p.model_noise_variance if weighting == "noise" else None)
-    return replace(p, scales=scales, Hs=Hs, line_weights=weights, variance=variance)
 
 
 def pole_map_of(data: FRFData) -> PoleMap:
@@ -244,6 +241,16 @@ def _weighted(
     weights, scales = whitening.whitening(variance)
     return (scales, H / scales[None, :, None], weights,
             variance / (scales**2)[None, :, None])
+
+
+def _in_model_form(
+    a: np.ndarray, factor: np.ndarray | None, variance: bool = False
+) -> np.ndarray:
+    """Lines of ``a`` (``(N, ny, nu)``) divided by ``factor`` (:attr:`Prepared.factor`), or
+    by ``|factor|^2`` for a ``variance``; ``a`` itself when ``factor`` is ``None``."""
+    if factor is None:
+        return a
+    return a / (np.abs(factor) ** 2 if variance else factor)[:, None, None]
 
 
 def _oriented(a: np.ndarray, reciprocal: bool) -> np.ndarray:

@@ -289,7 +289,7 @@ def test_huge_input_is_decimated_with_a_warning_in_bounded_time():
     data, _ = chain_test(n_lines=1_000_000, outputs=[0, 3])
     warnings: list[str] = []
     started = time.perf_counter()
-    same, freq, H = checks.prepare(data, data.frequency, data.frf, warnings)
+    same, freq, H, _ = checks.prepare(data, data.frequency, data.frf, warnings)
     assert time.perf_counter() - started < 10.0
     assert freq.size == checks.MAX_LINES and H.shape == (checks.MAX_LINES, 2, 1)
     assert freq[0] == data.frequency[0] and freq[-1] == data.frequency[-1]

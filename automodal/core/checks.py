@@ -116,7 +116,7 @@ are proportional); such data are too short to identify anyway."""
 
 def prepare(
     data: FRFData, freq: np.ndarray, H: np.ndarray, warnings: list[str], power: int = 0
-) -> tuple[FRFData, np.ndarray, np.ndarray]:
+) -> tuple[FRFData, np.ndarray, np.ndarray, bool]:
     """Check and clean the analysed band of a test before the identification.
 
     Parameters
@@ -143,6 +143,9 @@ def prepare(
         The lines to analyse (``M <= MAX_LINES``).
     H : ndarray, shape (M, ny', nu')
         Their FRFs, without the dropped channels.
+    receptance : bool
+        Whether their receptance form is the flatter (:func:`identified_form`), the trend
+        checked.
 
     Raises
     ------
@@ -167,7 +170,8 @@ def prepare(
     freq, H = _drop_outlier_lines(freq, H, warnings)
     if freq.size == 0:
         raise InputError("no usable frequency line in the band", source)
-    _check_trend(identified_form(freq, H, power)[1], source, warnings)
+    receptance, decades = identified_form(freq, H, power)
+    _check_trend(decades, source, warnings)
     if not has_resonance(H):
         warnings.append(f"no resonance peak in the band [{freq[0]:g}, {freq[-1]:g}] Hz (the FRF "
                         "magnitude has no local maximum that stands out of the noise): expect "
@@ -176,7 +180,7 @@ def prepare(
         f_edge = freq[0] if edge == "low" else freq[-1]
         warnings.append(f"the band's {edge} edge ({f_edge:g} Hz) is on a resonance peak: a "
                         "mode there may be missed or poorly estimated; widen the band")
-    return data, freq, H
+    return data, freq, H, receptance
 
 
 def _check_magnitude(H: np.ndarray, what: str, source: str | None) -> None:
