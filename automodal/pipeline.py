@@ -433,9 +433,12 @@ def _choose_orders(
         if message not in warnings:
             warnings.append(message)
         p = p.enveloped()
+        noise_complete = choice.complete
         choice = order.select_orders(p.z, p.Hs, p.line_weights, s.max_order, p.data.source,
                                      rank=rank, split_work=split_work,
                                      reference_cap=reference_cap)
+        # a noise scan cut short might have ended otherwise had it gone on
+        choice = replace(choice, complete=choice.complete and noise_complete)
     return p, choice
 
 
@@ -478,9 +481,12 @@ def _identify(
         if len(plan) > 1:  # a sub-band too costly is split again in its own run
             return _identify_sub_bands(data, s, plan, warnings, progress, t0,
                                        choice.reference, part, p.factor is not None)
-    if split_work is not None and (n_bands > 1 or choice.reference >= (parent_order or 0) > 0):
-        # no split after all: the scan may have ended early, at a stage whose order had not
-        # settled (a 9-DOF chain over 51 201 lines: n0 = 56 there against 36 when scanned on)
+    if (split_work is not None and not choice.complete
+            and (n_bands > 1 or choice.reference >= (parent_order or 0) > 0)):
+        # no split after all: the scan ended early, at a stage whose order had not settled
+        # (a 9-DOF chain over 51 201 lines: n0 = 56 there against 36 when scanned on); a
+        # scan that ended on its own would only be repeated (a dense grid's sub-band: 1.4 s
+        # of a 12.5 s file)
         p, choice = _choose_orders(prepared, s, rank, None, warnings, parent_order)
     if s.max_order is not None and choice.n0 >= choice.limit:
         warnings.append(

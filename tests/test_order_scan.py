@@ -137,3 +137,20 @@ def test_order_off_the_noise_takes_the_floor_above_and_the_directions_below():
     assert order_off_the_noise(92, 12, 20, 20) == (92, "significance")  # rank = sensors
     assert order_off_the_noise(92, 12, 20, None) == (92, "significance")
     assert order_off_the_noise(20, 12, 20, 7) == (20, "significance")  # already below
+
+
+def test_a_scan_ended_by_the_split_rule_is_marked_incomplete():
+    # complete: a scan without split_work would choose the same, so the pipeline need not
+    # repeat it when the band is not split after all
+    z, Hs, lw = _exact()
+    assert order.select_orders(z, Hs, lw).complete
+    ample = subspace.replicate_work(*Hs.shape, 1000)
+    assert order.select_orders(z, Hs, lw, split_work=ample).complete
+    # work so small that every order's reference exceeds it: the scan stops at its first
+    # stage whatever its misfit does
+    cut = order.select_orders(z, Hs, lw, split_work=1.0)
+    assert not cut.complete
+    whole = order.select_orders(z, Hs, lw)
+    same = order.select_orders(z, Hs, lw, split_work=ample)
+    assert same.n0 == whole.n0 and same.reference == whole.reference
+    assert np.array_equal(same.scanned, whole.scanned)

@@ -493,6 +493,10 @@ class OrderChoice:
         Block rows of the reference model
         (:func:`automodal.core.subspace.reference_block_rows` of the outputs' rank above
         the noise, when known).
+    complete : bool
+        Whether the scan ended where it would have without ``split_work``: its last
+        stage's order was below the one that ends a scan early (``split_above`` of
+        :func:`scan`), so a scan without ``split_work`` would give the same choice.
     """
 
     scanned: np.ndarray
@@ -504,6 +508,7 @@ class OrderChoice:
     rule: str = "floor"
     models: list[tuple[int, np.ndarray, np.ndarray]] = field(default_factory=list)
     block_rows: int = 0
+    complete: bool = True
 
 
 SIGNIFICANT_EXCESS = 2.0
@@ -600,16 +605,21 @@ def select_orders(
     rule = "floor" if variance is None else "significance"
     models: list[tuple[int, np.ndarray, np.ndarray]] = []
     if variance is None:
+        split_above = _split_above(N, ny, nu, cap, 3.0, split_work)
         orders, misfit = scan(z, H, weights, n_scan, count_peaks(H), models=models,
-                              split_above=_split_above(N, ny, nu, cap, 3.0, split_work))
+                              split_above=split_above)
         n0 = order_at_floor(orders, misfit)
     else:
         p = mode_parameters(ny, nu)
         tv = test_variance(H, variance)
+        split_above = _split_above(N, ny, nu, cap, SIGNIFICANT_EXCESS, split_work)
         orders, misfit, chi2 = scan(
             z, H, weights, n_scan, count_peaks(H, variance=tv), tv, p, z_alarm, models=models,
-            split_above=_split_above(N, ny, nu, cap, SIGNIFICANT_EXCESS, split_work))
+            split_above=split_above)
         n0 = significant_order(orders, chi2, p, z_alarm, ORDER_TOLERANCE)
+    # the order scan's last stage tested against split_above (the scan's own n0)
+    complete = split_above is None or n0 < split_above
+    if variance is not None:
         i0 = int(np.flatnonzero(orders == n0)[0])
         if not fits_noise(chi2[i0], min(N, SCAN_LINES), ny, nu, n0):
             n0, rule = order_off_the_noise(n0, order_at_floor(orders, misfit), ny, rank)
@@ -623,7 +633,7 @@ def select_orders(
         rows = int(2.0 * BOOTSTRAP_LINE_FRACTION * N * nu) // (ny + nu)
         q = max(q, min(subspace.reference_block_rows(n_ref, ny, rank), rows))
     return OrderChoice(scanned=orders, misfit=misfit, n0=n0, reference=n_ref, limit=n_limit,
-                       chi2=chi2, rule=rule, models=models, block_rows=q)
+                       chi2=chi2, rule=rule, models=models, block_rows=q, complete=complete)
 
 
 def order_off_the_noise(n0: int, floor: int, ny: int, rank: int | None) -> tuple[int, str]:
