@@ -442,8 +442,7 @@ def scan(
             )
             if (orders.size < planned.size or stage >= n_max
                     or not still_falling(orders, misfit)
-                    or (split_above is not None
-                        and order_at_floor(orders, misfit) >= split_above)):
+                    or _splits(order_at_floor(orders, misfit), split_above)):
                 return orders, misfit
         else:
             orders, misfit, chi2 = misfit_scan(
@@ -456,7 +455,7 @@ def scan(
             # whose upper band is noise: n0 = 12 at a residual 0.97 times its degrees of
             # freedom, and the scan went on to 208 states)
             if (orders.size < planned.size or stage >= n_max
-                    or (split_above is not None and n0 >= split_above)
+                    or _splits(n0, split_above)
                     or (n0 <= orders[-1] - (orders[-1] - orders[0]) / 3.0
                         and (not still_falling(orders, misfit)
                              or fits_noise(chi2[list(orders).index(n0)],
@@ -617,8 +616,7 @@ def select_orders(
             z, H, weights, n_scan, count_peaks(H, variance=tv), tv, p, z_alarm, models=models,
             split_above=split_above)
         n0 = significant_order(orders, chi2, p, z_alarm, ORDER_TOLERANCE)
-    # the order scan's last stage tested against split_above (the scan's own n0)
-    complete = split_above is None or n0 < split_above
+    complete = not _splits(n0, split_above)  # the scan's own n0, as its last stage saw it
     if variance is not None:
         i0 = int(np.flatnonzero(orders == n0)[0])
         if not fits_noise(chi2[i0], min(N, SCAN_LINES), ny, nu, n0):
@@ -669,6 +667,12 @@ def order_off_the_noise(n0: int, floor: int, ny: int, rank: int | None) -> tuple
     if rank is not None and rank < ny:
         return int(min(n0, max(floor, STATES_PER_DIRECTION * int(rank)))), "significance"
     return int(n0), "significance"
+
+
+def _splits(n0: int, split_above: int | None) -> bool:
+    """Whether a scan stage whose order is ``n0`` ends the scan because the caller will
+    split the band (``split_above`` of :func:`scan`)."""
+    return split_above is not None and n0 >= split_above
 
 
 def _split_above(
