@@ -38,6 +38,7 @@ from automodal.core import (
     bootstrap,
     checks,
     order,
+    parallel,
     reference,
     replicates,
     stabilization,
@@ -390,10 +391,15 @@ def _identify_sub_bands(
     far, ``t0`` when the run started, ``order_of_whole`` the reference order one model of
     the band would have had, ``part`` and ``receptance`` (the band's form, kept by its
     sub-bands) as in :func:`_identify`."""
-    results = [_identify(data, replace(s, band_hz=b.analysed_hz),
-                         within(progress, f"sub-band {i} of {len(plan)}"), part=True,
-                         parent_order=order_of_whole, receptance=receptance)
-               for i, b in enumerate(plan, 1)]
+    def one(i: int, b: sub_bands.SubBand) -> Callable[[ProgressCallback | None], Result]:
+        return lambda sent: _identify(
+            data, replace(s, band_hz=b.analysed_hz), within(sent, f"sub-band {i} of {len(plan)}"),
+            part=True, parent_order=order_of_whole, receptance=receptance)
+
+    # the sub-bands are independent problems: they share the workers (each is the same
+    # whatever runs beside it), and their progress comes in sub-band order
+    results = parallel.relayed_map([one(i, b) for i, b in enumerate(plan, 1)],
+                                   parallel.worker_count(s.jobs, len(plan)), progress)
     if any(r.shape_channels != results[0].shape_channels for r in results):
         # the data checks dropped different channels in different sub-bands: the shapes
         # cannot be put side by side, so the band is identified as one
@@ -519,7 +525,7 @@ def _identify(
         tell(progress, "refinement")
         modes = summary.refine_physical_modes(
             modes, ref.modal.poles, ref.modal.oscillatory, p.omega, p.H, p.noise_variance,
-            p.pole_map)
+            p.pole_map, s.jobs)
     fit = _physical_fit(p, modes)
     if not part:
         warnings.extend(resolution_warnings(modes, p.frequency, p.pole_map.shift))

@@ -64,8 +64,9 @@ class Settings:
         Largest model order (states) considered, at least :data:`MIN_ORDER`; an odd value
         is rounded down to even. Default what the data allow.
     jobs : int or None
-        Worker threads for the replicates, at least 1; ``None`` (the only "automatic"
-        value) uses all cores when the work pays for them. Never changes the result.
+        Worker threads for the replicates, the sub-bands of a split band and the
+        refinement's sums and tests, at least 1; ``None`` (the only "automatic" value) uses
+        all cores when the work pays for them. Never changes the result.
     threshold : float
         ``tau_1``, the correlation a mode needs to join a cluster, in ``(0, 1]``.
     zeta_max : float

@@ -7,7 +7,13 @@ import pytest
 
 from automodal.core import bilinear, bootstrap, replicates, subspace
 from automodal.core import simulate as sim
-from automodal.core.parallel import PARALLEL_MIN_FLOPS, gather, thread_map, worker_count
+from automodal.core.parallel import (
+    PARALLEL_MIN_FLOPS,
+    gather,
+    relayed_map,
+    thread_map,
+    worker_count,
+)
 
 
 def test_worker_count_rule(monkeypatch):
@@ -71,3 +77,37 @@ def test_replicates_are_identical_for_1_and_2_workers():
         np.testing.assert_array_equal(a.poles, b.poles)
         np.testing.assert_array_equal(a.shapes, b.shapes)
         assert a.path == b.path
+
+
+@pytest.mark.parametrize("n_jobs", [1, 2, 4])
+def test_relayed_map_passes_events_in_sequential_order_from_the_calling_thread(n_jobs):
+    """Tasks that end in the reverse of their order still have their events relayed task
+    by task, from the caller's thread; results come in task order."""
+    import threading
+    import time
+
+    caller = threading.get_ident()
+    seen: list[tuple[int, int, bool]] = []
+
+    def task(i: int):
+        def run(send):
+            for step in range(3):
+                time.sleep(0.002 * (4 - i))  # the later tasks finish first
+                if send is not None:
+                    send((i, step))
+            return i * 10
+        return run
+
+    out = relayed_map([task(i) for i in range(4)], n_jobs,
+                      lambda e: seen.append((*e, threading.get_ident() == caller)))
+    assert out == [0, 10, 20, 30]
+    assert seen == [(i, step, True) for i in range(4) for step in range(3)]
+    assert relayed_map([task(i) for i in range(2)], n_jobs) == [0, 10]  # no report
+
+
+def test_relayed_map_raises_a_task_error():
+    def bad(send):
+        raise RuntimeError("task failed")
+
+    with pytest.raises(RuntimeError, match="task failed"):
+        relayed_map([lambda send: 1, bad, lambda send: 3], 2, lambda e: None)

@@ -368,3 +368,25 @@ def test_a_residue_of_two_modes_or_within_its_error_gives_no_shape():
     assert np.all(np.isnan(residue_shapes(two, variance, np.array([1e-4]))))
     assert np.all(np.isfinite(residue_shapes(one, variance, np.array([1e-4]))))
     assert np.all(np.isnan(residue_shapes(one, variance, np.array([10.0]))))
+
+
+def test_refinement_is_the_same_whatever_the_workers(monkeypatch):
+    """The fit's halves, the covariance's chunks and the duplicate tests' batches on one
+    worker or several give the same numbers (a split resonance among the pairs, so a
+    duplicate is found inside a batch of tests)."""
+    monkeypatch.setattr("automodal.core.refine.PARALLEL_MIN_FLOPS", 0.0)
+    omega, H, variance, poles = _noisy_chain()
+    twins = poles[[1, 3]] + 0.5j * np.abs(poles[[1, 3]].real)
+    proportional = (0.03 * np.abs(H)) ** 2  # not separable: the covariance's sums run
+    runs = []
+    for jobs in (1, 2, 3):
+        fit = refine_poles(omega, H, proportional, poles, twins, jobs=jobs)
+        dup = duplicate_poles(omega, H, variance, np.concatenate([poles, twins]),
+                              np.zeros(0), jobs=jobs)
+        runs.append((fit, dup))
+    assert fit.refined.all() and runs[0][1].sum() == 2
+    for fit, dup in runs[1:]:
+        np.testing.assert_array_equal(fit.poles, runs[0][0].poles)
+        np.testing.assert_array_equal(fit.covariance, runs[0][0].covariance)
+        np.testing.assert_array_equal(fit.residues, runs[0][0].residues)
+        np.testing.assert_array_equal(dup, runs[0][1])

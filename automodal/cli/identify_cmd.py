@@ -166,7 +166,8 @@ def _run_batch(input_path: str, outputs: tuple[str, ...], settings: Settings,
               "band whose one model would be slow is split into sub-bands at the valleys "
               "between resonances, docs/method.md 2.1).")
 @click.option("--jobs", type=click.IntRange(min=1), default=None,
-              help="Cores to use (>= 1): threads for one file's bootstrap, processes across the "
+              help="Cores to use (>= 1): threads for one file's bootstrap, sub-bands and "
+              "refinement, processes across the "
               "files of a batch. Default: automatic (all cores when the work pays for them). "
               "Never changes the result.")
 @click.option("--plot", "plot_dir", type=click.Path(file_okay=False), default=None, metavar="DIR",

@@ -1,4 +1,5 @@
-"""A parallel ``map`` over threads with one BLAS thread, and the worker-count rule.
+"""A parallel ``map`` over threads with one BLAS thread, the worker-count rule, and a map of
+independent tasks whose events keep their sequential order (:func:`relayed_map`).
 
 numpy's matrix products and stacked LAPACK calls release the GIL, so threads share the
 cores without starting processes. BLAS is held to one thread meanwhile: OpenBLAS's own
@@ -75,3 +76,71 @@ def gather(
         if progress:
             progress(len(chunk))
     return results
+
+
+E = TypeVar("E")
+
+
+def relayed_map(
+    tasks: Sequence[Callable[[Callable[[E], None] | None], T]],
+    n_jobs: int,
+    report: Callable[[E], None] | None = None,
+) -> list[T]:
+    """Run independent ``tasks`` on ``n_jobs`` threads, each given its own event callback;
+    the events reach ``report`` from the calling thread in the order running the tasks one
+    after another would send them.
+
+    Task ``i``'s events are passed on as they come while every task before it has
+    finished, and held back until then otherwise. So ``report`` sees the same sequence
+    whatever ``n_jobs`` (a progress display is told of one task at a time), and task
+    ``i + 1`` can work while task ``i`` does.
+
+    Parameters
+    ----------
+    tasks : sequence of callables
+        ``task(callback)``: its result; ``callback`` is ``None`` when ``report`` is.
+    n_jobs : int
+        Worker threads (1: the tasks run in turn in the calling thread).
+    report : callable, optional
+        Receives the events.
+
+    Returns
+    -------
+    list
+        The tasks' results, in order. A task's exception is raised once all have ended.
+    """
+    if n_jobs <= 1 or len(tasks) <= 1:
+        return [task(report) for task in tasks]
+    import queue
+    from concurrent.futures import ThreadPoolExecutor
+
+    events: queue.SimpleQueue = queue.SimpleQueue()
+    ended = object()  # a task's last "event": it has returned or raised
+
+    def sender(i: int) -> Callable[[E], None] | None:
+        return None if report is None else (lambda event: events.put((i, event)))
+
+    held: list[list[E]] = [[] for _ in tasks]
+    done = [False] * len(tasks)
+    with ThreadPoolExecutor(max_workers=n_jobs) as pool:
+        futures = []
+        for i, task in enumerate(tasks):
+            future = pool.submit(task, sender(i))
+            # called once the task has ended, so after every event it sent
+            future.add_done_callback(lambda _, i=i: events.put((i, ended)))
+            futures.append(future)
+        current = 0
+        while current < len(tasks):
+            i, event = events.get()
+            if event is ended:
+                done[i] = True
+            else:
+                held[i].append(event)
+            while current < len(tasks):
+                for event in held[current]:
+                    report(event)  # type: ignore[misc]  # events come only with a report
+                held[current].clear()
+                if not done[current]:
+                    break
+                current += 1
+    return [future.result() for future in futures]

@@ -214,11 +214,12 @@ def _companion_vetoed(m: IdentifiedMode) -> bool:
 
 def _needed_companions(
     omega: np.ndarray, H: np.ndarray, variance: np.ndarray, fit: PoleRefinement, k: int,
-    fixed: np.ndarray,
+    fixed: np.ndarray, jobs: int | None = 1,
 ) -> np.ndarray:
     """Which refined companions (``fit.poles[k:]``, after the ``k`` modes called physical)
     the data need beside the pole nearest to each (:func:`duplicate_poles` at the refined
-    poles, the companions expendable), with every other pole in the model."""
+    poles, the companions expendable, on ``jobs`` workers), with every other pole in the
+    model."""
     n = fit.poles.size
     out = np.zeros(n - k, bool)
     ok = np.flatnonzero(fit.refined)
@@ -227,7 +228,7 @@ def _needed_companions(
         return out
     expendable = ok >= k
     dup = duplicate_poles(omega, H, variance, fit.poles[ok],
-                          np.concatenate([fit.poles[~fit.refined], fixed]), expendable)
+                          np.concatenate([fit.poles[~fit.refined], fixed]), expendable, jobs)
     out[comp - k] = ~dup[expendable]
     return out
 
@@ -240,6 +241,7 @@ def refine_physical_modes(
     H: np.ndarray,
     variance: np.ndarray,
     pole_map: PoleMap | None = None,
+    jobs: int | None = 1,
 ) -> list[IdentifiedMode]:
     """The modes, the physical ones with their frequency, damping and intervals from the
     maximum-likelihood refinement of their poles (:func:`automodal.core.refine.refine_poles`).
@@ -283,6 +285,9 @@ def refine_physical_modes(
     pole_map : PoleMap, optional
         From the model's poles to the structure's, applied to the refined poles and their
         covariance.
+    jobs : int or None
+        Worker threads for the refinement's independent sums and tests
+        (:func:`automodal.core.parallel.worker_count`); the result does not depend on it.
     """
     counts = Counter(m.reference_mode for m in modes if m.physical and m.reference_mode >= 0)
     chosen = sorted(i for i, c in counts.items() if c == 1)
@@ -305,9 +310,10 @@ def refine_physical_modes(
     needed = np.ones(free.size, bool)
     if companions.size:  # the companions the data do not need leave before the fit
         expendable = np.arange(free.size) >= k
-        needed = ~(duplicate_poles(omega, H, variance, free, fixed, expendable) & expendable)
+        needed = ~(duplicate_poles(omega, H, variance, free, fixed, expendable, jobs)
+                     & expendable)
         free = free[needed]
-    fit = refine_poles(omega, H, variance, free, fixed)
+    fit = refine_poles(omega, H, variance, free, fixed, jobs=jobs)
     kept = companions[needed[k:]]
     # a physical mode is a split resonance when the data do not need it beside another
     # physical mode (the companions that stayed are in the model, fixed)
@@ -315,10 +321,11 @@ def refine_physical_modes(
     duplicate = np.zeros(k, bool)
     duplicate[refined] = duplicate_poles(
         omega, H, variance, fit.poles[refined],
-        np.concatenate([fit.poles[np.setdiff1d(np.arange(free.size), refined)], fixed]))
+        np.concatenate([fit.poles[np.setdiff1d(np.arange(free.size), refined)], fixed]),
+        jobs=jobs)
     # a companion the data still need beside the refined modes is a mode of its own (the
     # second of two near-coincident modes the clustering joined into one)
-    promoted = (_needed_companions(omega, H, variance, fit, k, fixed) if min(H.shape[1:]) >= 2
+    promoted = (_needed_companions(omega, H, variance, fit, k, fixed, jobs) if min(H.shape[1:]) >= 2
                 else np.zeros(fit.poles.size - k, bool))
     if pole_map is not None:
         fit = replace(fit, poles=pole_map(fit.poles),
