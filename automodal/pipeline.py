@@ -386,20 +386,23 @@ def _identify_sub_bands(
     progress: ProgressCallback | None, t0: float, order_of_whole: int,
     part: bool = False, receptance: bool | None = None,
 ) -> Result:
-    """One identification per sub-band of ``plan``, merged
+    """One identification per sub-band of ``plan``, side by side on the workers, merged
     (:func:`automodal.band_merge.merge_sub_bands`); ``warnings`` are the whole band's so
     far, ``t0`` when the run started, ``order_of_whole`` the reference order one model of
     the band would have had, ``part`` and ``receptance`` (the band's form, kept by its
     sub-bands) as in :func:`_identify`."""
     def one(i: int, b: sub_bands.SubBand) -> Callable[[ProgressCallback | None], Result]:
         return lambda sent: _identify(
-            data, replace(s, band_hz=b.analysed_hz), within(sent, f"sub-band {i} of {len(plan)}"),
+            data, replace(inner, band_hz=b.analysed_hz),
+            within(sent, f"sub-band {i} of {len(plan)}"),
             part=True, parent_order=order_of_whole, receptance=receptance)
 
-    # the sub-bands are independent problems: they share the workers (each is the same
-    # whatever runs beside it), and their progress comes in sub-band order
-    results = parallel.relayed_map([one(i, b) for i, b in enumerate(plan, 1)],
-                                   parallel.worker_count(s.jobs, len(plan)), progress)
+    # the sub-bands are independent problems (each is the same whatever runs beside it, and
+    # whatever its jobs) and run side by side, their progress in sub-band order; jobs asked
+    # for are shared among them, the automatic choice left to each
+    n_jobs = parallel.worker_count(s.jobs, len(plan))
+    inner = s if s.jobs is None else replace(s, jobs=max(1, s.jobs // n_jobs))
+    results = parallel.relayed_map([one(i, b) for i, b in enumerate(plan, 1)], n_jobs, progress)
     if any(r.shape_channels != results[0].shape_channels for r in results):
         # the data checks dropped different channels in different sub-bands: the shapes
         # cannot be put side by side, so the band is identified as one

@@ -105,9 +105,14 @@ def test_relayed_map_passes_events_in_sequential_order_from_the_calling_thread(n
     assert relayed_map([task(i) for i in range(2)], n_jobs) == [0, 10]  # no report
 
 
-def test_relayed_map_raises_a_task_error():
+@pytest.mark.parametrize("n_jobs", [1, 3])
+def test_relayed_map_raises_a_task_error_after_its_events_and_relays_nothing_later(n_jobs):
     def bad(send):
+        send("before")
         raise RuntimeError("task failed")
 
+    seen: list[str] = []
     with pytest.raises(RuntimeError, match="task failed"):
-        relayed_map([lambda send: 1, bad, lambda send: 3], 2, lambda e: None)
+        relayed_map([lambda send: send("first"), bad, lambda send: send("later")], n_jobs,
+                    seen.append)
+    assert seen == ["first", "before"]

@@ -11,11 +11,15 @@ combines them in order (:func:`gather`).
 from __future__ import annotations
 
 import os
+import threading
 from collections.abc import Callable, Iterable, Iterator, Sequence, Sized
 from contextlib import contextmanager
 from typing import Any, TypeVar
 
 T = TypeVar("T")
+
+_LIMITS = threading.Lock()
+"""Held while BLAS thread limits are set or restored (:func:`thread_map`)."""
 
 PARALLEL_MIN_FLOPS = 2e7
 """Below this estimated work the tasks run in the calling thread (a thread pool costs
@@ -53,7 +57,11 @@ def thread_map(n_jobs: int) -> Iterator[Callable[..., Iterator[Any]]]:
     thread while the context lasts. Results come in the order of the inputs."""
     from threadpoolctl import threadpool_limits
 
-    with threadpool_limits(1):
+    # threadpoolctl's limits are process-wide and not thread-safe: maps entered from
+    # several threads at once (sub-bands side by side) set and restore them in turn
+    with _LIMITS:
+        limits = threadpool_limits(1)
+    try:
         if n_jobs == 1:
             yield map
             return
@@ -61,6 +69,9 @@ def thread_map(n_jobs: int) -> Iterator[Callable[..., Iterator[Any]]]:
 
         with ThreadPoolExecutor(max_workers=n_jobs) as pool:
             yield pool.map
+    finally:
+        with _LIMITS:
+            limits.restore_original_limits()
 
 
 def gather(
@@ -107,7 +118,9 @@ def relayed_map(
     Returns
     -------
     list
-        The tasks' results, in order. A task's exception is raised once all have ended.
+        The tasks' results, in order. A task's exception is raised after the events it
+        sent; the later tasks' events are not passed on, those not started are cancelled,
+        and those running end first.
     """
     if n_jobs <= 1 or len(tasks) <= 1:
         return [task(report) for task in tasks]
@@ -142,5 +155,10 @@ def relayed_map(
                 held[current].clear()
                 if not done[current]:
                     break
+                error = futures[current].exception()
+                if error is not None:  # as in turn: nothing after the failing task
+                    for future in futures[current + 1:]:
+                        future.cancel()
+                    raise error
                 current += 1
     return [future.result() for future in futures]
