@@ -326,6 +326,11 @@ class _Problem:
         """``[task(0), task(1)]`` (the real rows', the imaginary rows'), through ``pmap``."""
         return list(self.pmap(task, (0, 1)))
 
+    def summed(self, task: Callable[[int], T]) -> T:
+        """``task(0) + task(1)``: a sum over the stacked rows, half by half."""
+        real, imaginary = self.each_half(task)
+        return real + imaginary
+
 
 def _orthonormal(Phi: np.ndarray) -> np.ndarray:
     """Orthonormal basis of the column space of ``Phi`` (columns normalised first; columns
@@ -353,7 +358,7 @@ def _off_basis(
     h = prob.halves
     out = list(parts)
     for Q in [prob.Qf] if Qp is None else [prob.Qf, Qp]:
-        coef = sum(prob.each_half(lambda i, Q=Q, X=out: Q[h[i]].T @ X[i]))
+        coef = prob.summed(lambda i, Q=Q, X=out: Q[h[i]].T @ X[i])
         out = prob.each_half(lambda i, Q=Q, X=out, coef=coef: X[i] - Q[h[i]] @ coef)
     return list(parts), out
 
@@ -376,14 +381,14 @@ def _fit(
     norms = np.linalg.norm(P, axis=0)
     norms = np.where(norms > 0, norms, 1.0)
     Qp, Rt = _qr(P / norms[None, :])
-    QY = sum(prob.each_half(lambda i: Qp[h[i]].T @ prob.Yf[h[i]]))
+    QY = prob.summed(lambda i: Qp[h[i]].T @ prob.Yf[h[i]])
     R = np.empty_like(prob.Yf)
 
     def residual(i: int) -> float:
         R[h[i]] = prob.Yf[h[i]] - Qp[h[i]] @ QY
         return float(np.sum(R[h[i]] * R[h[i]]))
 
-    cost = sum(prob.each_half(residual))
+    cost = prob.summed(residual)
     try:
         C = np.linalg.solve(Rt, QY) / norms[:, None]
     except np.linalg.LinAlgError:
@@ -399,29 +404,30 @@ def _coefficient_rows(free: np.ndarray, C: np.ndarray) -> np.ndarray:
 
 def _jacobian_parts(
     prob: _Problem, free: np.ndarray, C: np.ndarray, Qp: np.ndarray
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Derivative columns ``D`` (stacked, ``(2N, 4m)``), the same projected off the whole
-    basis (``PD``) and the coefficient row that multiplies each (``(4m, E)``): Kaufman's
-    Jacobian of parameter ``t`` (``Re lambda_r`` or ``Im lambda_r``) is
-    ``-sum PD[:, a] Cx[a]^T`` over its two columns ``a``."""
+) -> tuple[list[np.ndarray], list[np.ndarray], np.ndarray]:
+    """Derivative columns ``D`` (``(4m)`` columns, per half of the stacked rows), the same
+    projected off the whole basis (``PD``, per half) and the coefficient row that
+    multiplies each (``(4m, E)``): Kaufman's Jacobian of parameter ``t`` (``Re lambda_r``
+    or ``Im lambda_r``) is ``-sum PD[:, a] Cx[a]^T`` over its two columns ``a``."""
     D, PD = _off_basis(prob, prob.sw[:, None] * _pair_derivatives(prob.s, free), Qp)
-    return np.vstack(D), np.vstack(PD), _coefficient_rows(free, C)
+    return D, PD, _coefficient_rows(free, C)
 
 
 def _normal_equations(
-    prob: _Problem, free: np.ndarray, C: np.ndarray, R: np.ndarray, Qp: np.ndarray
+    prob: _Problem, parts: tuple[list[np.ndarray], list[np.ndarray], np.ndarray],
+    R: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Gauss-Newton normal matrix ``J^T J`` and gradient ``J^T r`` in the real parameters
-    ``(Re lambda_1, Im lambda_1, ...)`` (variable projection with Kaufman's Jacobian)."""
+    ``(Re lambda_1, Im lambda_1, ...)`` (variable projection with Kaufman's Jacobian), from
+    :func:`_jacobian_parts` and the fit's residual ``R``."""
     h = prob.halves
-    D, PD = _off_basis(prob, prob.sw[:, None] * _pair_derivatives(prob.s, free), Qp)
-    Cx = _coefficient_rows(free, C)
+    D, PD, Cx = parts
     # R is orthogonal to the basis: D^T R = PD^T R
     gram, dr = zip(*prob.each_half(lambda i: (PD[i].T @ PD[i], D[i].T @ R[h[i]])))
     W = (gram[0] + gram[1]) * (Cx @ Cx.T)
     u = np.sum(Cx * (dr[0] + dr[1]), axis=1)
     # parameter t owns columns 2t and 2t + 1 of D
-    n = 2 * free.size
+    n = Cx.shape[0] // 2
     normal = W.reshape(n, 2, n, 2).sum(axis=(1, 3))
     grad = -u.reshape(n, 2).sum(axis=1)
     return normal, grad
@@ -441,7 +447,7 @@ def _gauss_newton(
     it = 0
     for _ in range(max_iterations):
         it += 1
-        normal, grad = _normal_equations(prob, free, C, R, Qp)
+        normal, grad = _normal_equations(prob, _jacobian_parts(prob, free, C, Qp), R)
         diag = np.diag(normal).copy()
         diag = np.where(diag > 0, diag, 1.0)
         improved = False
@@ -514,6 +520,53 @@ def _reach(start: np.ndarray, others: np.ndarray) -> np.ndarray:
     return np.maximum(MAX_MOVE * half, TERRITORY * gap)
 
 
+def _fit_holding_strays(
+    s: np.ndarray, sw: np.ndarray, Y: np.ndarray, free0: np.ndarray, fixed: np.ndarray,
+    max_iterations: int, pmap: Callable,
+) -> tuple[np.ndarray, np.ndarray, int]:
+    """The Gauss-Newton fit of ``free0`` (whitened data ``Y`` at ``s``, line weights' root
+    ``sw``, ``fixed`` poles held), refitted with each pole that strayed held at its start
+    (one more each time; see :func:`refine_poles`).
+
+    Returns
+    -------
+    poles : ndarray, shape (m,)
+        The fitted poles; the start where the pole strayed.
+    ok : ndarray of bool, shape (m,)
+        Whether each pole was fitted.
+    iterations : int
+        Iterations of the last fit.
+    """
+    m = free0.size
+    reach = _reach(free0, fixed)
+    ok = np.ones(m, bool)
+    poles, it = free0.copy(), 0
+    current = free0.copy()
+    for _ in range(m):
+        idx = np.flatnonzero(ok)
+        prob = _Problem.make(s, sw, Y, np.concatenate([free0[~ok], fixed]), pmap)
+        start, limit = free0[idx], reach[idx]
+
+        def left(got: np.ndarray, start: np.ndarray = start,
+                 limit: np.ndarray = limit) -> np.ndarray:
+            # out of reach or unstable: no later step brings a pole back from there
+            return (np.abs(got - start) > limit) | (got.real >= 0) | (got.imag <= 0)
+
+        got, it = _gauss_newton(prob, current[idx], max_iterations, left)
+        # the half-bandwidth is judged at the end only: from a start off its resonance a
+        # pole first widens to reach it (4.8 times, 5 half-bandwidths off), then narrows
+        ratio = np.abs(got.real) / np.maximum(np.abs(start.real), 1e-12)
+        bad = left(got) | (ratio > MAX_DAMPING_CHANGE) | (ratio < 1.0 / MAX_DAMPING_CHANGE)
+        ok[idx[bad]] = False
+        if not bad.any():
+            poles[idx] = got
+            break
+        current[idx] = got  # the others go on from where they were
+        if not ok.any():
+            break
+    return poles, ok, it
+
+
 def refine_poles(
     omega: np.ndarray,
     H: np.ndarray,
@@ -573,37 +626,7 @@ def refine_poles(
     # the halves of the rows' sums on two workers where an iteration's work pays for them
     work = 8.0 * N * m * (fixed.size + 2 * m + Y.shape[1])
     with thread_map(1 if work < PARALLEL_MIN_FLOPS else worker_count(jobs, 2)) as pmap:
-        reach = _reach(free0, fixed)
-        ok = np.ones(m, bool)
-        poles, it, prob = free0.copy(), 0, None
-        current = free0.copy()
-        for _ in range(m):  # refit with the poles that failed held fixed (one more each time)
-            idx = np.flatnonzero(ok)
-            held = np.concatenate([free0[~ok], fixed])
-            prob = _Problem.make(s, sw, Y, held, pmap)
-            start, limit = free0[idx], reach[idx]
-
-            def left(got: np.ndarray, start: np.ndarray = start,
-                     limit: np.ndarray = limit) -> np.ndarray:
-                # out of reach or unstable: no later step brings a pole back from there
-                return (np.abs(got - start) > limit) | (got.real >= 0) | (got.imag <= 0)
-
-            def strayed(got: np.ndarray, start: np.ndarray = start) -> np.ndarray:
-                # the half-bandwidth is judged at the end only: from a start off its resonance
-                # a pole first widens to reach it (4.8 times, 5 half-bandwidths off), then narrows
-                ratio = np.abs(got.real) / np.maximum(np.abs(start.real), 1e-12)
-                return (left(got) | (ratio > MAX_DAMPING_CHANGE)
-                        | (ratio < 1.0 / MAX_DAMPING_CHANGE))
-
-            got, it = _gauss_newton(prob, current[idx], max_iterations, left)
-            bad = strayed(got)
-            ok[idx[bad]] = False
-            if not bad.any():
-                poles[idx] = got
-                break
-            current[idx] = got  # the others go on from where they were
-            if not ok.any():
-                break
+        poles, ok, it = _fit_holding_strays(s, sw, Y, free0, fixed, max_iterations, pmap)
         idx = np.flatnonzero(ok)
         cov, disp = nan_cov, np.full(m, np.nan)
         if idx.size:
@@ -614,11 +637,12 @@ def refine_poles(
             cov[idx], disp[idx] = _covariance(_Problem.make(s, sw, Y, held[~pair], pmap),
                                               poles[idx], held[pair], separable_ratio(variance),
                                               jobs)
-            singular = ~np.all(np.isfinite(cov[idx]), axis=(1, 2)) | (cov[idx, 0, 0] < 0) | (
-                cov[idx, 1, 1] < 0)
-            ok[idx[singular]] = False
-            poles[idx[singular]] = free0[idx[singular]]
-            cov[idx[singular]] = np.nan
+    singular = np.zeros(m, bool)
+    singular[idx] = ~np.all(np.isfinite(cov[idx]), axis=(1, 2)) | (cov[idx, 0, 0] < 0) | (
+        cov[idx, 1, 1] < 0)
+    ok[singular] = False
+    poles[singular] = free0[singular]
+    cov[singular] = np.nan
     residues, residue_var = _residues(s, sw, Y, entry_var, poles, free0, fixed, ok)
     return PoleRefinement(poles=poles, covariance=cov, dispersion=disp, refined=ok,
                           iterations=it, residues=residues.reshape(m, *H.shape[1:]),
@@ -668,11 +692,12 @@ def _covariance(
     nuisance = np.zeros(0, complex) if nuisance is None else nuisance
     both = np.concatenate([poles, nuisance])
     cost, C, R, Qp = _fit(prob, both)
-    normal, _ = _normal_equations(prob, both, C, R, Qp)
+    parts = _jacobian_parts(prob, both, C, Qp)
+    normal, _ = _normal_equations(prob, parts, R)
     # leverage of the linear part per stacked row; residuals corrected for it
     leverage = np.clip(np.sum(prob.Qf**2, axis=1) + np.sum(Qp**2, axis=1), 0.0, 1.0 - 1e-9)
     Rc = R / np.sqrt(1.0 - leverage)[:, None]
-    _, PD, Cx = _jacobian_parts(prob, both, C, Qp)
+    PD, Cx = np.vstack(parts[1]), parts[2]
     # clustered sandwich: the scores of each block of CLUSTER_LINES lines over all their
     # entries (real and imaginary rows together), so errors correlated across the entries
     # of a line (an H1 estimate's shared force noise) or between neighbouring lines (a
@@ -725,7 +750,7 @@ def _weighted_information(
 
     ``J_e`` is entry ``e``'s Jacobian of the first ``k`` parameters, efficient when ``T``
     (the nuisance parameters' regression, see :func:`_covariance`) is given: ``J_f - J_n
-    T^T``. ``PD`` and ``Cx`` are as from :func:`_jacobian_parts`; the entries are shared
+    T^T``. ``PD`` (stacked) and ``Cx`` are as from :func:`_jacobian_parts`; the entries are shared
     among ``jobs`` worker threads in chunks fixed by the sizes, summed in order."""
     n2, a4 = PD.shape
     E = Cx.shape[1]
@@ -927,7 +952,10 @@ def duplicate_poles(
     # a batch of the next pairs is tested at once on the workers, and the tests after the
     # first duplicate in it are made again without it, so the outcome is the sequential one
     pending = [(a, b) for _, a, b in sorted(pairs)]
-    n_jobs = worker_count(jobs, len(pending))
+    # each test: Gauss-Newton iterations on the rows against the fixed part and the others
+    n_rows, n_entries = Y.shape
+    work = len(pending) * MAX_ITERATIONS * 8.0 * n_rows * (fixed.size + 2 * m + n_entries)
+    n_jobs = worker_count(jobs, len(pending), work)
     with thread_map(n_jobs) as pmap:
         while pending:
             pending = [(a, b) for a, b in pending if not (dup[a] or dup[b])]
