@@ -390,3 +390,35 @@ def test_refinement_is_the_same_whatever_the_workers(monkeypatch):
         np.testing.assert_array_equal(fit.covariance, runs[0][0].covariance)
         np.testing.assert_array_equal(fit.residues, runs[0][0].residues)
         np.testing.assert_array_equal(dup, runs[0][1])
+
+
+def test_held_background_poles_leave_the_intervals_free_of_rounding():
+    """Broad held poles, nearly the residual terms' columns and nearly each other's (as an
+    over-sized model's background poles are): a joint fit gives them huge cancelling
+    residues, and when their locations counted as nuisance parameters, perturbing them by
+    1e-15 moved the intervals by a factor of 4e4. Held as background, by 1e-6 at most."""
+    omega, H, variance, poles = _noisy_chain()
+    centre, width = 0.5 * (omega[0] + omega[-1]), omega[-1] - omega[0]
+    broad = (-1.5 * width + 1j * centre) * (1 + np.array([0.0, 1e-5, 2e-5]))
+    fixed = np.concatenate([poles[2:], broad])
+    base = refine_poles(omega, H, variance, poles[:2] * 1.001, fixed)
+    assert base.refined.all()
+    rng = np.random.default_rng(5)
+    for _ in range(3):
+        nudged = fixed * (1 + 1e-15 * rng.standard_normal(fixed.size))
+        fit = refine_poles(omega, H, variance, poles[:2] * 1.001, nudged)
+        np.testing.assert_allclose(fit.covariance, base.covariance, rtol=1e-5)
+
+
+def test_only_the_bands_resonances_are_nuisance_poles():
+    from automodal.core.refine import _in_band
+
+    omega = np.linspace(10.0, 20.0, 101)
+    pairs = np.array([-0.5 + 15j,  # a resonance of the band
+                      -1.0 + 9.5j,  # below it, its half-power interval reaching in
+                      -0.2 + 9.0j,  # below it
+                      -0.5 + 25j,  # above it
+                      -12.0 + 15j,  # broader than the band
+                      0.1 + 15j])  # unstable
+    np.testing.assert_array_equal(_in_band(pairs, omega), [True, True, False, False, False,
+                                                           False])
