@@ -729,12 +729,7 @@ def _covariance(
     score = _block_sums(score.reshape(score.shape[0], -1, 2).sum(axis=2))  # (blocks, 2M)
     k = 2 * m
     if nuisance.size:  # efficient score and information of the poles of interest
-        # scaled first, so the pseudo-inverse's cut sees dependence, not the sizes of the
-        # residues (their information spans ten decades in a dense band)
-        d = np.sqrt(np.diag(normal)[k:])
-        d = np.where(d > 0, d, 1.0)
-        T = (normal[:k, k:] / d[None, :]) @ np.linalg.pinv(
-            normal[k:, k:] / np.outer(d, d), rcond=1e-10, hermitian=True) / d[None, :]
+        T = _nuisance_regression(normal, k)
         normal = normal[:k, :k] - T @ normal[k:, :k]
         score = score[:, :k] - score[:, k:] @ T.T
     try:
@@ -766,6 +761,20 @@ def _covariance(
         disp[j] = float(np.trace(sand) / np.trace(model)) if np.trace(model) > 0 else np.nan
         cov[j] = sand if np.isfinite(disp[j]) and disp[j] > 1.0 else model
     return cov, disp
+
+
+def _nuisance_regression(normal: np.ndarray, k: int) -> np.ndarray:
+    """``N_fn N_nn^+``: the regression of the first ``k`` parameters' information on the
+    others' (the nuisance parameters) in the Gauss-Newton matrix ``normal``.
+
+    ``N_nn`` is scaled to a unit diagonal first, so the pseudo-inverse's cut sees columns
+    that depend on each other, not the sizes of the residues behind them (their
+    information spans ten decades in a dense band); where ``N_nn`` is singular, the
+    result is still a generalized inverse's, and the Schur complement the same."""
+    d = np.sqrt(np.diag(normal)[k:])
+    d = np.where(d > 0, d, 1.0)
+    scaled = np.linalg.pinv(normal[k:, k:] / np.outer(d, d), rcond=1e-10, hermitian=True)
+    return (normal[:k, k:] / d[None, :]) @ scaled / d[None, :]
 
 
 def _weighted_information(
