@@ -19,10 +19,10 @@ correction. Both treat the fixed pole pairs of the band's resonances as what the
 estimates with their own uncertainty (nuisance parameters; broader or out-of-band poles
 are background, as the residual terms are): the information and the scores of the
 refined poles are the efficient ones, with the part a fixed neighbour's pole could
-explain projected out (the Schur complement of the joint information). A refined mode beside a fixed
-neighbour it overlaps with is then as uncertain as the pair's data allow; without it,
-the intervals of modes within three half-bandwidths of another covered 85 % of the true
-values on the calibration seed 252 (isolated modes 93 %).
+explain projected out (the Schur complement of the joint information). A refined mode
+beside a fixed neighbour it overlaps with is then as uncertain as the pair's data allow;
+without it, the intervals of modes within three half-bandwidths of another covered 85 %
+of the true values on the calibration seed 252 (isolated modes 93 %).
 
 The weighting is separable: the noise variance of line ``k`` and entry ``e`` is fitted as
 ``v_k c_e`` (a two-way model of its logarithm), so every entry shares one basis. Where the
