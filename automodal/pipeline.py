@@ -261,6 +261,23 @@ def _oriented(a: np.ndarray, reciprocal: bool) -> np.ndarray:
     return np.swapaxes(a, -1, -2) if reciprocal else a
 
 
+def _independent_lines(data: FRFData) -> bool:
+    """Whether the data's errors are independent from line to line, as the likelihood of
+    the refinement (:func:`automodal.core.summary.refine_physical_modes`) assumes.
+
+    Not for half spectra (output-only data): the errors of a correlation estimate persist
+    from lag to lag while a mode's correlation rings (Bartlett's formula), so near each
+    resonance the half spectra's errors are smooth across lines and look like a moved
+    resonance. The fit's residual then hides them and the likelihood counts each line as
+    new evidence: on simulated ambient tests (5 systems, seeds 54-61, 192 modes) the
+    refinement's 95 % intervals held the true frequency for 62 % of the modes and the
+    true damping for 68 %, and its likelihood-ratio test kept spurious companions. The
+    bootstrap over the half spectra's records (:func:`automodal.core.spectra.
+    half_spectrum_records`) resamples the error as it is: 90 % and 91 % there, with no
+    spurious mode. So output-only modes keep their bootstrap statistics."""
+    return data.attributes.get("analysis") != "operational"
+
+
 def _estimate_noise(data: FRFData, freq: np.ndarray, H: np.ndarray) -> NoiseEstimate:
     """The noise model of the analysed band (records, coherence or the data alone)."""
     from automodal.core.noise import averages_from_attributes, estimate_noise
@@ -524,7 +541,7 @@ def _identify(
         clusters.subspaces, ref.modes, p.scales, ref.contribution, s.n_bootstrap,
         s.min_physicalness, snr2, whitening.mode_parameters(*p.Hs.shape[1:]),
     )
-    if p.noise is not None:
+    if p.noise is not None and _independent_lines(p.data):
         tell(progress, "refinement")
         modes = summary.refine_physical_modes(
             modes, ref.modal.poles, ref.modal.oscillatory, p.omega, p.H, p.noise_variance,

@@ -101,9 +101,11 @@ def test_output_only_records_send_the_first_pass_then_the_analysis():
     events: list[Progress] = []
     identify(ts, Settings(seed=0, n_bootstrap=6, jobs=1), events.append)
     got = labels(events)
-    first = [f"first pass: {x}" for x in ["spectra", *IDENTIFY]]
+    # half spectra are not refined (their errors are correlated across lines)
+    stages = [x for x in IDENTIFY if x != "refinement"]
+    first = [f"first pass: {x}" for x in ["spectra", *stages]]
     assert got[: len(first)] == first, got
-    assert got[len(first):] == ["spectra", *IDENTIFY], got
+    assert got[len(first):] == ["spectra", *stages], got
     check_counts(events, "first pass: bootstrap", 6)
     check_counts(events, "bootstrap", 6)
 

@@ -32,7 +32,10 @@ from automodal.errors import InputError
 from automodal.frfdata import FRFData, quantity_problem
 from automodal.timedata import TimeSeries
 
-__all__ = ["EXCITATIONS", "USABLE_FRACTION", "as_frfdata", "frfdata_from_time"]
+__all__ = [
+    "EXCITATIONS", "RECORDS_BYTES", "USABLE_FRACTION", "as_frfdata", "frfdata_from_time",
+    "operational_records",
+]
 
 EXCITATIONS = ("auto", "random", "impact", "operational")
 """Routes of :func:`frfdata_from_time`; ``"auto"`` picks one from the data."""
@@ -146,8 +149,9 @@ def frfdata_from_time(
         ``n_records``, ``segments_per_record`` (H1); ``hits``, ``force_window_samples``,
         ``exponential_decay_per_s`` (impact); ``references``, ``reference_names``,
         ``max_lag_samples``, ``max_lag_s``, ``lag_window``, ``lag_window_tail``,
-        ``lag_window_decay_per_s``, ``decimation``, ``analysed_sample_rate_hz``
-        (operational). A window decay ``a`` > 0 adds ``a`` to
+        ``lag_window_decay_per_s``, ``decimation``, ``analysed_sample_rate_hz``,
+        ``n_records`` (operational: the half spectra's records,
+        :func:`operational_records`; 0 when none). A window decay ``a`` > 0 adds ``a`` to
         every pole's decay rate. :func:`as_frfdata` records it (and, for half spectra, the
         sample rate) in the attributes, from which the pipeline maps the poles back
         (:class:`~automodal.core.pole_map.PoleMap`); FRFs identified from this function's
@@ -314,6 +318,28 @@ def _impact(
     return freq, H, coh, rec
 
 
+RECORDS_BYTES = 1 << 27
+"""Most memory (128 MB) the records of output-only half spectra take: fewer records on a
+very large test (64 outputs, 3 references and 16384 lags leave 5), 48 on common ones (20
+outputs, 3 references and 4096 lags take 94 MB)."""
+
+
+def operational_records(n_samples: int, max_lag: int, n_outputs: int, n_refs: int) -> int:
+    """How many records the half spectra keep (0: none).
+
+    One per stretch of the record, as many as the plan's independent stretches
+    (:data:`automodal.core.ambient_plan.MIN_BLOCKS`, 48), each at least ``max_lag``
+    samples long, within :data:`RECORDS_BYTES`. Their spread is the half spectra's error
+    (:func:`automodal.core.spectra.half_spectrum_records`): the noise model and the
+    bootstrap's replicates come from them. Fewer than 2 would say nothing: none then.
+    """
+    from automodal.core import ambient_plan
+
+    per_record = (max_lag // 2 + 1) * n_outputs * n_refs * 16
+    n = min(ambient_plan.MIN_BLOCKS, n_samples // max_lag, RECORDS_BYTES // per_record)
+    return n if n >= 2 else 0
+
+
 def _operational(
     ts: TimeSeries,
     nperseg: int | None,
@@ -338,7 +364,13 @@ def _operational(
         if references is not None
         else spectra.choose_references(y, fs, max_refs=max_references)
     )
-    freq, G = spectra.half_spectra(y, refs, fs, L, tail=tail)
+    n_rec = operational_records(n, L, y.shape[1], len(refs))
+    if n_rec >= 2:
+        freq, records = spectra.half_spectrum_records(y, refs, fs, L, n_rec, tail=tail)
+        G = records.mean(axis=0)
+    else:
+        freq, G = spectra.half_spectra(y, refs, fs, L, tail=tail)
+        records = None
     m = L
     names = [ts.output_names[i] for i in refs]
     info.update(
@@ -357,8 +389,9 @@ def _operational(
         lag_window="exponential",
         lag_window_tail=float(tail),
         lag_window_decay_per_s=spectra.exponential_decay(m, fs, tail),
+        n_records=0 if records is None else int(records.shape[0]),
     )
-    return freq, G, None, None, names
+    return freq, G, None, records, names
 
 
 def _forces_look_swapped(ts: TimeSeries) -> str | None:

@@ -37,6 +37,8 @@ __all__ = [
     "screen_hits",
     "h1_estimate",
     "half_spectra",
+    "half_spectrum_records",
+    "record_correlations",
     "segment_count",
     "segment_starts",
     "undo_exponential_window",
@@ -714,22 +716,82 @@ def cross_correlation(
     -------
     ndarray, shape (max_lag, n_out, n_ref)
     """
+    y, refs, m = _correlation_inputs(outputs, refs_idx, max_lag)
+    n = y.shape[0]
+    return _lagged_sums(y, refs, m, 0, n) / (n - np.arange(m))[:, None, None]
+
+
+def record_correlations(
+    outputs: np.ndarray, refs_idx: Sequence[int], max_lag: int, n_records: int
+) -> np.ndarray:
+    """The correlations of :func:`cross_correlation` split into ``n_records`` records, one
+    per contiguous stretch of the record, whose mean is the whole record's estimate.
+
+    Record ``b`` holds the products ``y_i(t + tau) y_r(j)(t)`` whose reference sample ``t``
+    lies in the ``b``-th of ``n_records`` equal stretches (the outputs may reach into the
+    next stretch), times ``n_records / (N - tau)``. Stretches longer than the
+    correlation time of the response are nearly independent, so the records' spread gives
+    the error of the estimate, including its correlation from lag to lag (Bartlett's
+    formula), which no model of independent noise on neighbouring lines captures.
+
+    Parameters
+    ----------
+    outputs, refs_idx, max_lag
+        As for :func:`cross_correlation`.
+    n_records : int
+        Number of records, ``2 <= n_records <= N // max_lag`` (each stretch holds at
+        least ``max_lag`` reference samples).
+
+    Returns
+    -------
+    ndarray, shape (n_records, max_lag, n_out, n_ref)
+    """
+    return np.stack(list(_stretch_correlations(outputs, refs_idx, max_lag, n_records)))
+
+
+def _stretch_correlations(
+    outputs: np.ndarray, refs_idx: Sequence[int], max_lag: int, n_records: int
+) -> Iterator[np.ndarray]:
+    """The records of :func:`record_correlations`, one at a time (memory: one record)."""
+    y, refs, m = _correlation_inputs(outputs, refs_idx, max_lag)
+    n = y.shape[0]
+    n_records = int(n_records)
+    if not 2 <= n_records <= n // m:
+        raise ValueError(f"n_records must be in [2, {n // m}] for {n} samples and {m} lags,"
+                         f" got {n_records}")
+    edges = (np.arange(n_records + 1) * n) // n_records
+    scale = n_records / (n - np.arange(m))[:, None, None]
+    for b in range(n_records):
+        yield _lagged_sums(y, refs, m, int(edges[b]), int(edges[b + 1])) * scale
+
+
+def _correlation_inputs(
+    outputs: np.ndarray, refs_idx: Sequence[int], max_lag: int
+) -> tuple[np.ndarray, list[int], int]:
+    """The outputs with their means removed, the checked references and number of lags."""
     y = _channels(outputs, "outputs")
     y = y - y.mean(axis=0, keepdims=True)
     refs = _check_refs(refs_idx, y.shape[1])
-    n = y.shape[0]
     m = int(max_lag)
-    if not 1 <= m < n:
-        raise ValueError(f"max_lag must be in [1, {n - 1}], got {max_lag}")
+    if not 1 <= m < y.shape[0]:
+        raise ValueError(f"max_lag must be in [1, {y.shape[0] - 1}], got {max_lag}")
+    return y, refs, m
+
+
+def _lagged_sums(y: np.ndarray, refs: list[int], m: int, start: int, stop: int) -> np.ndarray:
+    """``sum_t y(t + tau) y_ref(t)`` over ``start <= t < stop`` (and ``t + tau`` in the
+    record) for ``tau = 0 .. m - 1``: exactly, by FFT over blocks of the references
+    against the outputs extended by ``m`` samples, so memory stays small."""
     r = y[:, refs]
     block = max(4 * m, 4096)
     size = scipy.fft.next_fast_len(block + m, real=True)
     acc = np.zeros((m, y.shape[1], len(refs)))
-    for s in range(0, n, block):
-        Rf = scipy.fft.rfft(r[s : s + block], size, axis=0)
-        Yf = scipy.fft.rfft(y[s : s + block + m], size, axis=0)
+    for s in range(start, stop, block):
+        e = min(s + block, stop)
+        Rf = scipy.fft.rfft(r[s:e], size, axis=0)
+        Yf = scipy.fft.rfft(y[s : e + m], size, axis=0)
         acc += scipy.fft.irfft(Yf[:, :, None] * Rf[:, None, :].conj(), size, axis=0)[:m]
-    return acc / (n - np.arange(m))[:, None, None]
+    return acc
 
 
 def exponential_decay(max_lag: int, fs: float, tail: float = LAG_WINDOW_TAIL) -> float:
@@ -805,13 +867,60 @@ def half_spectra(
         Half spectra.
     """
     m = int(nperseg)
-    R = cross_correlation(outputs, refs_idx, m)
+    return _lag_windowed_spectra(cross_correlation(outputs, refs_idx, m), fs, tail)
+
+
+def half_spectrum_records(
+    outputs: np.ndarray,
+    refs_idx: Sequence[int],
+    fs: float,
+    nperseg: int,
+    n_records: int,
+    *,
+    tail: float = LAG_WINDOW_TAIL,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The half spectra of :func:`half_spectra` as ``n_records`` records whose mean is the
+    whole record's half spectra: each the transform of one stretch's correlations
+    (:func:`record_correlations`), under the same lag window.
+
+    Their spread is the error of the half spectra as it is: a lightly damped mode's
+    correlation errors persist from lag to lag, so the half spectra's errors near its
+    resonance are smooth across lines and look like a moved resonance. A noise model
+    from the data alone (independent noise on neighbouring lines) sees almost none of it:
+    on a simulated 3-DOF chain it was 1e-6 of the variance over 30 independent records.
+
+    Parameters
+    ----------
+    outputs, refs_idx, fs, nperseg, tail
+        As for :func:`half_spectra`.
+    n_records : int
+        As for :func:`record_correlations`.
+
+    Returns
+    -------
+    freq : ndarray, shape (nperseg // 2 + 1,)
+    records : ndarray, shape (n_records, n_freq, n_out, n_ref), complex
+    """
+    records = None
+    for b, R in enumerate(_stretch_correlations(outputs, refs_idx, int(nperseg), n_records)):
+        freq, G = _lag_windowed_spectra(R, fs, tail)
+        if records is None:
+            records = np.empty((int(n_records),) + G.shape, complex)
+        records[b] = G
+    return freq, records
+
+
+def _lag_windowed_spectra(
+    R: np.ndarray, fs: float, tail: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Lines and transforms of correlations ``R`` (lags on axis ``-3``) under the
+    exponential lag window, ``R(0)`` halved, a real FFT of length ``M`` times ``1 / fs``."""
+    m = R.shape[-3]
     a = exponential_decay(m, fs, tail)
     w = np.exp(-a * np.arange(m) / fs)
     w[0] = 0.5
-    G = scipy.fft.rfft(R * w[:, None, None], int(nperseg), axis=0) / fs
-    freq = np.arange(G.shape[0]) * (fs / int(nperseg))
-    return freq, G
+    G = scipy.fft.rfft(R * w[:, None, None], m, axis=-3) / fs
+    return np.arange(G.shape[-3]) * (fs / m), G
 
 
 def choose_references(
