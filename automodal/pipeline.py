@@ -638,6 +638,12 @@ def _replicates(
             "bootstrap over frequency lines: the spread is conditional on the one noise"
             " realization in the data"
         )
+        if not _independent_lines(p.data):
+            warnings.append(
+                "output-only half spectra without records: their errors are correlated"
+                " across lines, so the intervals of this line bootstrap are too narrow"
+                " (several times, on simulated tests); give the time records, or convert"
+                " them again, so that the bootstrap resamples stretches of the record")
     return replicates.stack_replicates(reps, p.H.shape[1], p.pole_map)
 
 

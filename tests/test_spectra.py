@@ -19,6 +19,7 @@ from automodal.core import simulate as sim
 from automodal.core import spectra
 from automodal.core.from_time import frfdata_from_time
 from automodal.errors import InputError
+from automodal.frfdata import FRFData
 from automodal.io.time_file import read_time, write_time
 from automodal.pipeline import identify
 from automodal.settings import Settings
@@ -221,6 +222,8 @@ def test_record_correlations_split_the_sum_by_stretch():
     freq_r, Gr = spectra.half_spectrum_records(y, [2, 0], 10.0, m, n_rec)
     assert np.array_equal(freq, freq_r)
     np.testing.assert_allclose(Gr.mean(axis=0), G, rtol=1e-12, atol=1e-14)
+    freq_k, Gk = spectra.half_spectrum_records(y, [2, 0], 10.0, m, n_rec, n_lines=9)
+    assert np.array_equal(freq_k, freq[:9]) and np.array_equal(Gk, Gr[:, :9])
     for bad in (1, 9001 // m + 1):
         with pytest.raises(ValueError, match="n_records"):
             spectra.record_correlations(y, [2, 0], m, bad)
@@ -334,7 +337,15 @@ def test_identify_operational(ambient_test, truth):
     assert found_within(truth.frequency_hz, result.modes).all()
     # the bootstrap resamples the records; no likelihood refinement (correlated line errors)
     assert result.noise.source == "records"
+    assert any(w.startswith(f"bootstrap over the {info['n_records']} repeated records")
+               for w in result.warnings), result.warnings
     assert all(m.estimator == "bootstrap" for m in result.physical_modes)
+    # without its records the same data are still not refined, and the report says why
+    bare = FRFData(frequency=data.frequency, frf=data.frf, quantity=data.quantity,
+                   attributes=data.attributes)
+    result = identify(bare, Settings(n_bootstrap=20, jobs=1))
+    assert all(m.estimator == "bootstrap" for m in result.physical_modes)
+    assert any("without records" in w for w in result.warnings), result.warnings
     a = info["lag_window_decay_per_s"]
     for f0, z0 in zip(truth.frequency_hz, truth.damping_ratio):
         m = min(result.physical_modes, key=lambda m: abs(m.frequency_hz - f0))

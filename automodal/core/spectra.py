@@ -878,6 +878,7 @@ def half_spectrum_records(
     n_records: int,
     *,
     tail: float = LAG_WINDOW_TAIL,
+    n_lines: int | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """The half spectra of :func:`half_spectra` as ``n_records`` records whose mean is the
     whole record's half spectra: each the transform of one stretch's correlations
@@ -895,15 +896,19 @@ def half_spectrum_records(
         As for :func:`half_spectra`.
     n_records : int
         As for :func:`record_correlations`.
+    n_lines : int, optional
+        Keep only the first ``n_lines`` lines (the band analysed; memory is spent on
+        those only). Default: all ``nperseg // 2 + 1``.
 
     Returns
     -------
-    freq : ndarray, shape (nperseg // 2 + 1,)
+    freq : ndarray, shape (n_freq,)
     records : ndarray, shape (n_records, n_freq, n_out, n_ref), complex
     """
     records = None
     for b, R in enumerate(_stretch_correlations(outputs, refs_idx, int(nperseg), n_records)):
         freq, G = _lag_windowed_spectra(R, fs, tail)
+        freq, G = freq[:n_lines], G[:n_lines]
         if records is None:
             records = np.empty((int(n_records),) + G.shape, complex)
         records[b] = G
