@@ -118,6 +118,13 @@ class FRFData:
         return int(self.frf.shape[2])
 
     @property
+    def output_only(self) -> bool:
+        """Whether the data are the half spectra of output-only records (attribute
+        ``analysis = "operational"``): the references stand for the inputs, and no force
+        was measured."""
+        return self.attributes.get("analysis") == "operational"
+
+    @property
     def omega(self) -> np.ndarray:
         """Angular frequencies in rad/s."""
         return 2.0 * np.pi * self.frequency

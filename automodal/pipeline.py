@@ -176,7 +176,7 @@ def prepare(
     choice.
     """
     freq, H, band = select_band(data, s.band_hz, warnings)
-    operational = data.attributes.get("analysis") == "operational"
+    operational = data.output_only
     power = 0 if operational else quantity_power(data.quantity)
     data, freq, H, flatter = checks.prepare(data, freq, H, warnings, power)
     noise = None
@@ -275,7 +275,7 @@ def _independent_lines(data: FRFData) -> bool:
     bootstrap over the half spectra's records (:func:`automodal.core.spectra.
     half_spectrum_records`) resamples the error as it is: 90 % and 91 % there, with no
     spurious mode. So output-only modes keep their bootstrap statistics."""
-    return data.attributes.get("analysis") != "operational"
+    return not data.output_only
 
 
 def _estimate_noise(data: FRFData, freq: np.ndarray, H: np.ndarray) -> NoiseEstimate:
@@ -691,8 +691,7 @@ def _physical_fit(p: Prepared, modes: list[IdentifiedMode]) -> synthesis.FixedPo
             and np.isfinite(m.damping_ratio)]
     lam = synthesis.modal_poles(np.array([m.frequency_hz for m in phys], dtype=float),
                                 np.array([m.damping_ratio for m in phys], dtype=float))
-    operational = p.data.attributes.get("analysis") == "operational"
-    power = 0 if operational else quantity_power(p.data.quantity)
+    power = 0 if p.data.output_only else quantity_power(p.data.quantity)
     return synthesis.fit_fixed_poles(p.omega, p.H, p.pole_map.to_model(lam), power)
 
 

@@ -111,7 +111,7 @@ class CalibrationOutcome:
 def check_channels(data: FRFData, model: ParametrizedModel, model_source: str) -> None:
     """Refuse a model whose ``/outputs/dof`` and ``/inputs/dof`` do not match the FRF file's
     channels, and output-only data."""
-    if data.attributes.get("analysis") == "operational":
+    if data.output_only:
         raise InputError("output-only (operational) data have no FRFs to calibrate against",
                          data.source)
     ny, nu = data.frf.shape[1:]
