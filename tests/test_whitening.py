@@ -229,3 +229,24 @@ def test_output_rank_counts_the_directions_above_the_noise():
     assert whitening.output_rank(H - H + 0.1 * rng.normal(size=H.shape), var) == 0
     full = 10.0 * rng.normal(size=H.shape)
     assert whitening.output_rank(full, var) == ny
+
+
+def test_a_rank_of_one_member_neither_counts_nor_is_physical():
+    """A pair cluster whose second rank one replicate alone produced is one mode: found by
+    97 of 100 replicates, it is physical; the lone pole is not."""
+    poles = np.array([-0.01 * 60 + 1j * 60, -0.01 * 61 + 1j * 61])
+    ref = ModeSet(poles=poles, mu=np.array([0.5 + 0.5j, 0.5 + 0.5j]),
+                  shapes=np.ones((3, 2), complex) / np.sqrt(3), participation=None)
+    sub = clustering.ReferenceSubspaces(groups=[np.array([0, 1])], bases=[np.eye(3)[:, :2]],
+                                        noise_basis=np.zeros((3, 0)), capacity=[2])
+    members = np.append(np.full(97, poles[0]), poles[1])
+    replicate = np.append(np.arange(97), 0)  # replicate 0 found both
+    modes = summarise_clusters(
+        np.zeros(98, dtype=int), np.ones(98), members, np.ones((3, 98), complex) / np.sqrt(3),
+        replicate, sub, ref, np.ones(3), np.ones(2), 100, 0.5, snr2=np.array([1e8, 1e8]),
+        params=12,
+    )
+    main, lone = sorted(modes, key=lambda m: m.n_members, reverse=True)
+    assert main.n_members == 97 and main.features["occurrence"] == pytest.approx(0.97)
+    assert main.physical
+    assert lone.n_members == 1 and not lone.physical and lone.physicalness == 0.0

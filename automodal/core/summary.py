@@ -108,9 +108,9 @@ def summarise_clusters(
         group = refsub.groups[c][: refsub.dims[c]]  # the representatives, in rank order
         centre = ref.poles[group][np.minimum(rank, group.size - 1)]
         rel = np.abs(poles[idx] - centre) / np.abs(centre)
+        n_members, dim = _present_ranks(rank, int(refsub.dims[c]))
         f = physicalness.cluster_features(
-            idx.size, n_bootstrap, int(refsub.dims[c]), rho[idx], rel,
-            float(np.max(contribution[group])),
+            n_members, n_bootstrap, dim, rho[idx], rel, float(np.max(contribution[group])),
         )
         feats.append(f)
         per_cluster.append((idx, rank))
@@ -157,8 +157,8 @@ def summarise_clusters(
                     damping_ratio=float(np.median(zt)),
                     damping_std=sample_std(zt),
                     damping_ci95=percentiles(zt),
-                    physicalness=float(p),
-                    physical=bool(p >= min_physicalness),
+                    physicalness=float(p) if sel.size > 1 else 0.0,
+                    physical=bool(p >= min_physicalness and sel.size > 1),
                     n_members=int(sel.size),
                     mode_shape=rep_unit,
                     mode_shape_std=shape_spread(rep_unit, members),
@@ -170,6 +170,29 @@ def summarise_clusters(
                 )
             )
     return numbered(modes)
+
+
+def _present_ranks(rank: np.ndarray, dim: int) -> tuple[int, int]:
+    """Members and dimension of a cluster without its ranks of one member.
+
+    A rank (the ``r``-th lowest pole of each replicate in a cluster of dimension ``dim``)
+    that one replicate alone produced is no mode, as a cluster of one member is none: its
+    mode is reported non-physical, and it neither counts as a dimension nor adds a member
+    to the cluster's occurrence. Counted, it halved the occurrence of a 24.6 Hz mode found
+    by 97 of 100 replicates (SNR 12 858; the reference model had split it in two poles, 24.606
+    and 24.628 Hz, and one replicate too), which the majority rule then vetoed.
+
+    Returns
+    -------
+    n_members, dim : int
+        For :func:`automodal.core.physicalness.cluster_features`; the cluster's own when
+        every rank has one member (a cluster of one member is vetoed anyway).
+    """
+    counts = np.bincount(rank, minlength=dim)[:dim]
+    lone = counts == 1
+    if lone.all() or not lone.any():
+        return int(rank.size), dim
+    return int(rank.size - np.count_nonzero(lone)), int(dim - np.count_nonzero(lone))
 
 
 def numbered(modes: list[IdentifiedMode]) -> list[IdentifiedMode]:
