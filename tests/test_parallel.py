@@ -28,6 +28,25 @@ def test_worker_count_rule(monkeypatch):
             worker_count(bad, 10)
 
 
+def test_tasks_side_by_side_share_the_cores(monkeypatch):
+    """Inside two tasks of relayed_map running at once, the automatic worker count leaves
+    a core to the other task; a task running alone, and the caller, get them all."""
+    import threading
+
+    monkeypatch.setattr("os.cpu_count", lambda: 4)
+    both = threading.Barrier(2)
+
+    def task(_):
+        both.wait(timeout=10)
+        n = worker_count(None, 100)
+        both.wait(timeout=10)
+        return n
+
+    assert relayed_map([task, task], 2) == [3, 3]
+    assert relayed_map([lambda _: worker_count(None, 100)], 2) == [4]
+    assert worker_count(None, 100) == 4
+
+
 @pytest.mark.parametrize("n_jobs", [1, 2, 3])
 def test_thread_map_keeps_input_order(n_jobs):
     with thread_map(n_jobs) as pmap:
