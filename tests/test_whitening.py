@@ -250,3 +250,19 @@ def test_a_rank_of_one_member_neither_counts_nor_is_physical():
     assert main.n_members == 97 and main.features["occurrence"] == pytest.approx(0.97)
     assert main.physical
     assert lone.n_members == 1 and not lone.physical and lone.physicalness == 0.0
+
+
+def test_a_rank_no_replicate_produced_does_not_count():
+    """A pair cluster of the reference model whose replicates all found one pole: one mode,
+    physical when a majority found it."""
+    poles = np.array([-0.01 * 60 + 1j * 60, -0.01 * 61 + 1j * 61])
+    ref = ModeSet(poles=poles, mu=np.array([0.5 + 0.5j, 0.5 + 0.5j]),
+                  shapes=np.ones((3, 2), complex) / np.sqrt(3), participation=None)
+    sub = clustering.ReferenceSubspaces(groups=[np.array([0, 1])], bases=[np.eye(3)[:, :2]],
+                                        noise_basis=np.zeros((3, 0)), capacity=[2])
+    (mode,) = summarise_clusters(
+        np.zeros(90, dtype=int), np.ones(90), np.full(90, poles[0]),
+        np.ones((3, 90), complex) / np.sqrt(3), np.arange(90), sub, ref, np.ones(3),
+        np.ones(2), 100, 0.5, snr2=np.array([1e8, 1e8]), params=12,
+    )
+    assert mode.features["occurrence"] == pytest.approx(0.9) and mode.physical
