@@ -416,7 +416,8 @@ def _identify_sub_bands(
 
     # the sub-bands are independent problems (each is the same whatever runs beside it, and
     # whatever its jobs) and run side by side, their progress in sub-band order; jobs asked
-    # for are shared among them, the automatic choice left to each
+    # for are shared among them, and the automatic choice inside each takes the cores the
+    # others leave (parallel.free_cores)
     n_jobs = parallel.worker_count(s.jobs, len(plan))
     inner = s if s.jobs is None else replace(s, jobs=max(1, s.jobs // n_jobs))
     results = parallel.relayed_map([one(i, b) for i, b in enumerate(plan, 1)], n_jobs, progress)

@@ -47,6 +47,32 @@ def test_tasks_side_by_side_share_the_cores(monkeypatch):
     assert worker_count(None, 100) == 4
 
 
+def test_a_task_waiting_for_its_own_split_gives_up_its_core(monkeypatch):
+    """A task that runs a map of its own (a sub-band split again) holds no core while it
+    waits: with one other task running, each of its two inner tasks may take 2 of 4 cores."""
+    import threading
+
+    monkeypatch.setattr("os.cpu_count", lambda: 4)
+    three = threading.Barrier(3)
+
+    def inner(_):
+        three.wait(timeout=10)
+        n = worker_count(None, 100)
+        three.wait(timeout=10)
+        return n
+
+    def split(_):
+        return relayed_map([inner, inner], 2)
+
+    def other(_):
+        three.wait(timeout=10)
+        three.wait(timeout=10)
+        return None
+
+    assert relayed_map([split, other], 2) == [[2, 2], None]
+    assert worker_count(None, 100) == 4
+
+
 @pytest.mark.parametrize("n_jobs", [1, 2, 3])
 def test_thread_map_keeps_input_order(n_jobs):
     with thread_map(n_jobs) as pmap:

@@ -22,11 +22,14 @@ _LIMITS = threading.Lock()
 """Held while BLAS thread limits are set or restored (:func:`thread_map`)."""
 
 _RUNNING = 0
-"""Tasks of :func:`relayed_map` running now on its worker threads (side-by-side sub-bands):
-each holds a core, and the automatic worker count inside them shares the rest
-(:func:`free_cores`)."""
+"""Threads holding a core now: the tasks of :func:`relayed_map` running on its worker
+threads (side-by-side sub-bands), less those waiting for tasks of their own. The automatic
+worker count inside a task shares the cores the others leave (:func:`free_cores`)."""
 
 _RUNNING_LOCK = threading.Lock()
+
+_THREAD = threading.local()
+"""``held``: whether the current thread is counted in :data:`_RUNNING`."""
 
 PARALLEL_MIN_FLOPS = 2e7
 """Below this estimated work the tasks run in the calling thread (a thread pool costs
@@ -34,8 +37,8 @@ about 0.1 ms; worker threads pay from a few milliseconds of work)."""
 
 
 def free_cores() -> int:
-    """Cores an automatic worker count may take now: all of them, less one for each other
-    task of :func:`relayed_map` running (the caller is taken to run inside one), at least 1.
+    """Cores an automatic worker count may take now: all of them, less one for each thread
+    other than the caller that holds one (:data:`_RUNNING`), at least 1.
 
     Two sub-bands side by side, each with as many workers as cores, ran four threads on two
     cores, and each worker of a replicate or an order scan holds its own working arrays:
@@ -44,22 +47,36 @@ def free_cores() -> int:
     next map.
     """
     cores = os.cpu_count() or 1
+    mine = 1 if getattr(_THREAD, "held", False) else 0
     with _RUNNING_LOCK:
-        others = max(0, _RUNNING - 1)
+        others = _RUNNING - mine
     return max(1, cores - others)
 
 
-def _holding_a_core(task: Callable[..., T]) -> Callable[..., T]:
-    """``task`` counted in :data:`_RUNNING` while it runs."""
-    def run(*args: Any) -> T:
-        global _RUNNING
+@contextmanager
+def _core_held(held: bool) -> Iterator[None]:
+    """The calling thread counted in :data:`_RUNNING` (``held``) or not while the context
+    lasts: a task holds a core while it runs, and gives it up while it waits for a split of
+    its own (a sub-band split again) to run on other threads."""
+    global _RUNNING
+    before = getattr(_THREAD, "held", False)
+    change = int(held) - int(before)
+    with _RUNNING_LOCK:
+        _RUNNING += change
+    _THREAD.held = held
+    try:
+        yield
+    finally:
         with _RUNNING_LOCK:
-            _RUNNING += 1
-        try:
+            _RUNNING -= change
+        _THREAD.held = before
+
+
+def _holding_a_core(task: Callable[..., T]) -> Callable[..., T]:
+    """``task`` run holding a core (:func:`_core_held`)."""
+    def run(*args: Any) -> T:
+        with _core_held(True):
             return task(*args)
-        finally:
-            with _RUNNING_LOCK:
-                _RUNNING -= 1
     return run
 
 
@@ -172,7 +189,7 @@ def relayed_map(
 
     held: list[list[E]] = [[] for _ in tasks]
     done = [False] * len(tasks)
-    with ThreadPoolExecutor(max_workers=n_jobs) as pool:
+    with _core_held(False), ThreadPoolExecutor(max_workers=n_jobs) as pool:
         futures = []
         for i, task in enumerate(tasks):
             future = pool.submit(_holding_a_core(task), sender(i))
