@@ -28,20 +28,27 @@ def test_worker_count_rule(monkeypatch):
             worker_count(bad, 10)
 
 
+def _counting_together(parties: int):
+    """A task that, once ``parties`` threads have reached it, returns the automatic worker
+    count it sees while all of them are still running."""
+    import threading
+
+    together = threading.Barrier(parties)
+
+    def task(_):
+        together.wait(timeout=10)
+        n = worker_count(None, 100)
+        together.wait(timeout=10)
+        return n
+
+    return task
+
+
 def test_tasks_side_by_side_share_the_cores(monkeypatch):
     """Inside two tasks of relayed_map running at once, the automatic worker count leaves
     a core to the other task; a task running alone, and the caller, get them all."""
-    import threading
-
     monkeypatch.setattr("os.cpu_count", lambda: 4)
-    both = threading.Barrier(2)
-
-    def task(_):
-        both.wait(timeout=10)
-        n = worker_count(None, 100)
-        both.wait(timeout=10)
-        return n
-
+    task = _counting_together(2)
     assert relayed_map([task, task], 2) == [3, 3]
     assert relayed_map([lambda _: worker_count(None, 100)], 2) == [4]
     assert worker_count(None, 100) == 4
@@ -50,26 +57,9 @@ def test_tasks_side_by_side_share_the_cores(monkeypatch):
 def test_a_task_waiting_for_its_own_split_gives_up_its_core(monkeypatch):
     """A task that runs a map of its own (a sub-band split again) holds no core while it
     waits: with one other task running, each of its two inner tasks may take 2 of 4 cores."""
-    import threading
-
     monkeypatch.setattr("os.cpu_count", lambda: 4)
-    three = threading.Barrier(3)
-
-    def inner(_):
-        three.wait(timeout=10)
-        n = worker_count(None, 100)
-        three.wait(timeout=10)
-        return n
-
-    def split(_):
-        return relayed_map([inner, inner], 2)
-
-    def other(_):
-        three.wait(timeout=10)
-        three.wait(timeout=10)
-        return None
-
-    assert relayed_map([split, other], 2) == [[2, 2], None]
+    task = _counting_together(3)
+    assert relayed_map([lambda _: relayed_map([task, task], 2), task], 2) == [[2, 2], 2]
     assert worker_count(None, 100) == 4
 
 
