@@ -440,6 +440,16 @@ def _identify_sub_bands(
     return merged
 
 
+def _noise_of_scaled(noise_weighted: Prepared, p: Prepared) -> np.ndarray | None:
+    """The noise variance of ``p.Hs`` when the run is weighted by the noise model, also
+    where the order scan fell back on the envelope weighting (``p`` is then
+    ``noise_weighted.enveloped()``, whose channels are scaled otherwise), else ``None``."""
+    if noise_weighted.variance is None:
+        return None
+    ratio = noise_weighted.scales / p.scales
+    return noise_weighted.variance * (ratio**2)[None, :, None]
+
+
 def _choose_orders(
     p: Prepared, s: Settings, rank: int | None, split_work: float | None, warnings: list[str],
     reference_cap: int | None = None,
@@ -502,9 +512,10 @@ def _identify(
         n_bands = sub_bands.sub_band_count(sub_bands.replicate_work(
             *p.Hs.shape, choice.reference, choice.block_rows))
     if n_bands > 1:
-        plan = sub_bands.plan_sub_bands(p.frequency, p.Hs, n_bands, stabilization.
-                                        stable_frequencies(choice.models, p.T, p.band_hz,
-                                                           s.zeta_max, p.pole_map))
+        plan = sub_bands.plan_sub_bands(
+            p.frequency, p.Hs, n_bands, stabilization.stable_frequencies(
+                choice.models, p.T, p.band_hz, s.zeta_max, p.pole_map),
+            _noise_of_scaled(prepared, p))
         if len(plan) > 1:  # a sub-band too costly is split again in its own run
             return _identify_sub_bands(data, s, plan, warnings, progress, t0,
                                        choice.reference, part, p.factor is not None)

@@ -44,12 +44,22 @@ def modelab() -> FRFData:
 
 
 def test_modelab_roving_hammer_beam(modelab):
-    """All 4 reference modes called physical, within 0.5 %, in the setup's 65-1000 Hz band."""
+    """All 4 reference modes called physical, within 0.5 %, in the setup's 65-1000 Hz band,
+    and no physical mode elsewhere.
+
+    A resonance whose peak moves between the nine hits (974 Hz: four lines, 974.08 to
+    974.16 Hz; 596 Hz: three) is fitted by one model of common poles with several, and may
+    be reported as several modes: at most as many as the lines its peak takes."""
     result = identify(modelab, Settings(band_hz=(65.0, 1000.0), seed=0))
     found = np.array([m.frequency_hz for m in result.physical_modes])
+    f = modelab.frequency
     for f_ref in MODELAB_REFERENCE_HZ:
         assert np.min(np.abs(found - f_ref) / f_ref) < 0.005, (f_ref, found)
-    assert found.size <= 6, found
+        near = np.abs(f / f_ref - 1.0) < 0.005
+        peaks = {int(np.argmax(np.abs(h[near]))) for h in modelab.frf[:, 0, :].T}
+        assert np.count_nonzero(np.abs(found / f_ref - 1.0) < 0.005) <= len(peaks), found
+    off = np.abs(found[:, None] / MODELAB_REFERENCE_HZ[None, :] - 1.0).min(axis=1)
+    assert np.all(off < 0.005), found  # no noise mode anywhere in the band
     assert result.reciprocity
 
 

@@ -174,3 +174,50 @@ def test_sub_bands_keep_the_form_chosen_on_the_whole_band(split_everything):
     assert [b["form"] for b in bands] == ["receptance"] * len(bands)
     found = np.array([m.frequency_hz for m in result.physical_modes])
     assert all(np.min(np.abs(found - f) / f) < 1e-3 for f in modes.frequency_hz)
+
+
+def test_plan_counts_no_peak_where_noise_dominates():
+    """With the noise variance, the plan's resonances are the modes, not the wiggles of
+    noise (a seed-397 file's first sub-band held 39 noise peaks and none of the 38 modes):
+    here a stretch below the first mode buried in noise and a faint floor elsewhere."""
+    data, modes = _siso_chain()
+    f, H = data.frequency[1:], data.frf[1:]
+    quiet = f < 0.8 * modes.frequency_hz.min()
+    rng = np.random.default_rng(3)
+    sigma = np.full(H.shape, 1e-4 * np.abs(H).max())
+    sigma[quiet] = 3.0 * np.abs(H[quiet]).mean()
+    H = H + sigma * (rng.standard_normal(H.shape) + 1j * rng.standard_normal(H.shape)) / 2**0.5
+    blind = sub_bands.plan_sub_bands(f, H, 3)
+    assert sum(b.n_peaks for b in blind) > 2 * modes.frequency_hz.size
+    plan = sub_bands.plan_sub_bands(f, H, 3, variance=sigma**2)
+    assert len(plan) == 3
+    for i, b in enumerate(plan):
+        assert b.n_peaks == np.count_nonzero(b.holds(modes.frequency_hz, i == len(plan) - 1))
+    assert sum(b.n_peaks for b in plan) == modes.frequency_hz.size
+
+
+def test_a_noise_weighted_split_run_plans_against_the_noise(split_everything, monkeypatch):
+    """The pipeline gives the plan the noise variance of the FRF it plans on: the
+    noise-weighted scan's, or where the scan fell back on the envelope weighting, the same
+    noise in the enveloped channels' scaling (the relative noise of each entry unchanged)."""
+    from automodal import pipeline
+
+    case = cases.chain10_5pct()
+    seen = []
+    plan = sub_bands.plan_sub_bands
+
+    def spy(f, H, n, modes_hz=None, variance=None):
+        seen.append((H, variance))
+        return plan(f, H, n, modes_hz, variance)
+
+    monkeypatch.setattr(sub_bands, "plan_sub_bands", spy)
+    identify(case.data, Settings(seed=0, n_bootstrap=10))
+    assert seen and all(v is not None and v.shape == H.shape for H, v in seen)
+    p = pipeline.prepare(case.data, Settings(), [])
+    e = p.enveloped()
+    assert not np.allclose(e.scales, p.scales)
+    v = pipeline._noise_of_scaled(p, e)
+    np.testing.assert_allclose(v / np.abs(e.Hs) ** 2, p.variance / np.abs(p.Hs) ** 2,
+                               rtol=1e-10)
+    np.testing.assert_allclose(pipeline._noise_of_scaled(p, p), p.variance, rtol=1e-12)
+    assert pipeline._noise_of_scaled(e, e) is None

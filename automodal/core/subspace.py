@@ -560,8 +560,10 @@ def observability_from_schur(S: np.ndarray, n: int) -> tuple[np.ndarray, np.ndar
     and the ``n`` leading singular values of ``L22`` (square roots of the eigenvalues,
     descending).
     """
-    # the full eigendecomposition (divide and conquer): LAPACK's subset drivers were
-    # 2.3-4x slower at these sizes (0.75 vs 0.22 ms at 54, 30 vs 8.5 ms at 320)
+    # the full eigendecomposition (divide and conquer): LAPACK's subset driver, faster on
+    # one thread for a few eigenvectors of a large matrix (2.2 times at 585 x 22), holds
+    # the GIL in scipy's wrapper, so on the replicates' workers, or beside another
+    # sub-band, it was as slow or slower (benchmarks/results_eigh.md)
     w, v = np.linalg.eigh(S)
     v = v[..., ::-1][..., :n]
     w = w[..., ::-1][..., :n]
