@@ -438,3 +438,28 @@ def test_the_nuisance_regression_ignores_the_scale_of_its_columns():
     normal = A.T @ A
     exact = np.linalg.solve(normal[2:, 2:], normal[2:, :2]).T
     np.testing.assert_allclose(_nuisance_regression(normal, 2), exact, rtol=1e-6, atol=0)
+
+
+@pytest.mark.parametrize("nuisance", [True, False])
+def test_weighted_information_is_the_sum_over_entries_it_defines(nuisance):
+    """``sum_e J_e^T diag(ratio_e) J_e``, ``J_e`` entry ``e``'s Jacobian (each parameter's two
+    derivative columns times their coefficients), of the parameters of interest less the
+    nuisance parameters' share ``J_n T^T``; the same whatever the workers."""
+    from automodal.core.refine import _weighted_information
+
+    rng = np.random.default_rng(4)
+    n2, n_all, E, k = 400, 10, 7, 4
+    PD = rng.standard_normal((n2, 2 * n_all))
+    Cx = rng.standard_normal((2 * n_all, E))
+    ratio = rng.uniform(0.5, 2.0, (n2 // 2, E))
+    T = rng.standard_normal((k, n_all - k)) if nuisance else None
+    rho = np.concatenate([ratio, ratio])
+    want = np.zeros((k, k) if nuisance else (n_all, n_all))
+    for e in range(E):
+        J = PD[:, 0::2] * Cx[0::2, e] + PD[:, 1::2] * Cx[1::2, e]
+        if nuisance:
+            J = J[:, :k] - J[:, k:] @ T.T
+        want += J.T @ (rho[:, e, None] * J)
+    got = _weighted_information(PD, Cx, ratio, k, T)
+    np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-12 * np.abs(want).max())
+    np.testing.assert_array_equal(_weighted_information(PD, Cx, ratio, k, T, jobs=2), got)
