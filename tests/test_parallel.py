@@ -9,6 +9,8 @@ from automodal.core import bilinear, bootstrap, replicates, subspace
 from automodal.core import simulate as sim
 from automodal.core.parallel import (
     PARALLEL_MIN_FLOPS,
+    free_cores,
+    freeing_map,
     gather,
     relayed_map,
     thread_map,
@@ -61,6 +63,44 @@ def test_a_task_waiting_for_its_own_split_gives_up_its_core(monkeypatch):
     task = _counting_together(3)
     assert relayed_map([lambda _: relayed_map([task, task], 2), task], 2) == [[2, 2], 2]
     assert worker_count(None, 100) == 4
+
+
+def test_a_freeing_map_takes_a_core_as_soon_as_it_is_free(monkeypatch):
+    """Begun beside another task (one core free), an automatic freeing map runs its calls
+    in the calling thread; once that task has ended, on two workers. Workers asked for are
+    the pool's."""
+    import threading
+    import time
+
+    monkeypatch.setattr("os.cpu_count", lambda: 2)
+    started, release = threading.Event(), threading.Event()
+
+    def sibling(_):
+        started.set()
+        release.wait(10)
+
+    def whose(_):
+        time.sleep(0.05)
+        return threading.get_ident()
+
+    def refining(_):
+        started.wait(10)
+        with freeing_map(None, 2) as (n, pmap):
+            before = set(pmap(whose, range(2)))
+            release.set()
+            for _ in range(2000):  # until the sibling has ended and freed its core
+                if free_cores() > 1:
+                    break
+                time.sleep(0.005)
+            after = set(pmap(whose, range(2)))
+        with freeing_map(2, 2) as (asked, amap):
+            fixed = set(amap(whose, range(2)))
+        return n, before, after, asked, fixed, threading.get_ident()
+
+    _, (n, before, after, asked, fixed, me) = relayed_map([sibling, refining], 2)
+    assert n == 2 and before == {me}
+    assert me not in after and len(after) == 2
+    assert asked == 2 and me not in fixed
 
 
 @pytest.mark.parametrize("n_jobs", [1, 2, 3])

@@ -44,7 +44,7 @@ from typing import TypeVar
 import numpy as np
 import scipy.linalg as sla
 
-from automodal.core.parallel import PARALLEL_MIN_FLOPS, thread_map, worker_count
+from automodal.core.parallel import PARALLEL_MIN_FLOPS, freeing_map
 
 T = TypeVar("T")
 
@@ -626,7 +626,7 @@ def refine_poles(
     s, sw, Y, entry_var = _whitened(omega, H, variance)
     # the halves of the rows' sums on two workers where an iteration's work pays for them
     work = 8.0 * N * m * (fixed.size + 2 * m + Y.shape[1])
-    with thread_map(1 if work < PARALLEL_MIN_FLOPS else worker_count(jobs, 2)) as pmap:
+    with freeing_map(jobs if work >= PARALLEL_MIN_FLOPS else 1, 2) as (_, pmap):
         poles, ok, it = _fit_holding_strays(s, sw, Y, free0, fixed, max_iterations, pmap)
         idx = np.flatnonzero(ok)
         cov, disp = nan_cov, np.full(m, np.nan)
@@ -813,7 +813,7 @@ def _weighted_information(
         W = W.reshape(n2 * e, width)
         return W.T @ W
 
-    with thread_map(worker_count(jobs, len(chunks), 2.0 * n2 * E * width * (a4 + width))) as pmap:
+    with freeing_map(jobs, len(chunks), 2.0 * n2 * E * width * (a4 + width)) as (_, pmap):
         parts = list(pmap(part, chunks))
     return np.sum(parts, axis=0)  # in chunk order: the same whatever the workers
 
@@ -1001,8 +1001,7 @@ def duplicate_poles(
     # each test: Gauss-Newton iterations on the rows against the fixed part and the others
     n_rows, n_entries = Y.shape
     work = len(pending) * MAX_ITERATIONS * 8.0 * n_rows * (fixed.size + 2 * m + n_entries)
-    n_jobs = worker_count(jobs, len(pending), work)
-    with thread_map(n_jobs) as pmap:
+    with freeing_map(jobs, len(pending), work) as (n_jobs, pmap):
         while pending:
             pending = [(a, b) for a, b in pending if not (dup[a] or dup[b])]
             batch, out = pending[:n_jobs], dup.copy()
