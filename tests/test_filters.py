@@ -9,6 +9,13 @@ from scipy import ndimage
 from automodal.core import filters
 
 
+@pytest.fixture(autouse=True)
+def numpy_unless_large(monkeypatch):
+    """The tests import ndimage, which would send every call to it: the NumPy path is
+    taken as in a run where ndimage is not imported yet."""
+    monkeypatch.setattr(filters, "_ndimage_loaded", lambda: False)
+
+
 @pytest.mark.parametrize("n", [1, 2, 3, 7, 50, 301])
 @pytest.mark.parametrize("size", [1, 2, 3, 4, 5, 11, 60, 88])
 @pytest.mark.parametrize("mode", ["nearest", "mirror"])
@@ -43,3 +50,22 @@ def test_bad_arguments_refused() -> None:
         filters.running_max(np.zeros(5), 3, origin=5)
     with pytest.raises(ValueError):
         filters.running_median(np.zeros((2, 2)), 3)
+
+
+def test_once_ndimage_is_imported_it_serves_every_call(monkeypatch) -> None:
+    """Its import is paid then: a small median goes to it too, with the same numbers."""
+    calls = []
+    real = ndimage.median_filter
+
+    def spy(*args, **kwargs):
+        calls.append(args)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(ndimage, "median_filter", spy)
+    x = np.random.default_rng(5).standard_normal(200)
+    small = filters.running_median(x, 11)
+    assert not calls
+    monkeypatch.setattr(filters, "_ndimage_loaded", lambda: True)
+    np.testing.assert_array_equal(filters.running_median(x, 11), small)
+    assert len(calls) == 1
+

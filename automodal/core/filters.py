@@ -2,26 +2,39 @@
 
 The data checks, the order scan and the line weights of every run smooth or compare the
 magnitude over a window of lines. :mod:`scipy.ndimage` does it, but importing it costs
-about 0.09 s, a sixth of the imports of a whole ``automodal identify``. Here a window of a
-short array is taken in NumPy (a strided view of the padded array, reduced along the
-window), and only when the work (lines x window) is large, so that the import no longer
-matters beside it, are the ndimage filters imported and used. Both give the same numbers
+30-90 ms. Here a window of a short array is taken in NumPy (a strided view of the padded
+array, reduced along the window), and only when the work (lines x window) is large, so
+that the import pays for itself (:data:`NUMPY_WORK_LIMIT`), or when ndimage is imported
+already, are the ndimage filters used. Both give the same numbers
 (``tests/test_filters.py`` checks them against ndimage).
 """
 
 from __future__ import annotations
 
+import sys
 from collections.abc import Callable
 
 import numpy as np
 
 __all__ = ["running_max", "running_median", "running_min"]
 
-NUMPY_WORK_LIMIT = 1 << 22
-"""Largest ``lines x window`` done in NumPy (a median copies that many numbers)."""
+NUMPY_WORK_LIMIT = 1 << 21
+"""Largest ``lines x window`` done in NumPy while :mod:`scipy.ndimage` is not imported.
+
+A NumPy median costs about 10 ns per number of its windows (37 ms for 6000 lines and a
+601-line window), ndimage's 0.4 ms for the same, and importing ndimage 30-60 ms once
+scipy.linalg is loaded. A run filters its band about three times at one size, so from
+2 M numbers per call (60 ms in NumPy over three calls) the import pays; once imported,
+ndimage serves every call. (At 4 M, a 6000-line file's three medians took 0.11 s in NumPy:
+a tenth of its identification.)"""
 
 _PAD_MODES = {"nearest": "edge", "mirror": "reflect"}
 """ndimage's boundary modes that are used here, as :func:`numpy.pad` names them."""
+
+
+def _ndimage_loaded() -> bool:
+    """Whether :mod:`scipy.ndimage` is imported already (its import then costs nothing)."""
+    return "scipy.ndimage" in sys.modules
 
 
 def running_median(x: np.ndarray, size: int, mode: str = "nearest") -> np.ndarray:
@@ -63,7 +76,8 @@ def _running(
     if x.size == 0:
         return x.copy()
     # ndimage extends an array shorter than the window in its own way: left to it
-    if x.size * size > NUMPY_WORK_LIMIT or (mode == "mirror" and size > x.size):
+    if (_ndimage_loaded() or x.size * size > NUMPY_WORK_LIMIT
+            or (mode == "mirror" and size > x.size)):
         from scipy import ndimage
 
         if ndimage_name == "median_filter":
