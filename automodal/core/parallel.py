@@ -155,7 +155,7 @@ def freeing_map(
         with thread_map(n) as pmap:
             yield n, pmap
         return
-    n = max(1, min(os.cpu_count() or 1, int(n_tasks)))
+    n = worker_count(os.cpu_count() or 1, n_tasks)  # a worker per core, at most per task
     with thread_map(n) as pmap:
         if n == 1:
             yield n, pmap
