@@ -356,7 +356,7 @@ def refine_physical_modes(
                       covariance=pole_map.covariance(fit.poles, fit.covariance))
     f, f_std, z, z_std = fit.frequency_damping()
     ok = fit.refined
-    shapes = residue_shapes(fit.residues, variance, fit.residue_variance)
+    shapes = residue_shapes(fit.residues, variance, fit.residue_variance, fit.entry_variance)
     slot = {int(m): j for j, m in enumerate(chosen)}
     owners = Counter(m.reference_mode for m in modes)
     for c in np.flatnonzero(promoted):  # a companion's reference mode, one cluster's own
