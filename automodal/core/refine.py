@@ -944,8 +944,8 @@ def residue_shapes(
     if entry_variance is not None:
         for i, r in enumerate(np.flatnonzero(ok)[one]):
             Rs = shrunk(R[r], entry_variance[r])
-            vectors[i] = (np.linalg.svd(Rs * whiten)[0][:, 0] if np.any(Rs != 0)
-                          else np.nan)
+            vectors[i] = (np.linalg.svd(Rs * whiten, full_matrices=False)[0][:, 0]
+                          if np.any(Rs != 0) else np.nan)
     shapes[:, np.flatnonzero(ok)[one]] = (vectors * np.exp(0.5 * a)[None, :]).T
     return shapes
 
