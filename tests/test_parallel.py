@@ -103,6 +103,43 @@ def test_a_freeing_map_takes_a_core_as_soon_as_it_is_free(monkeypatch):
     assert asked == 2 and me not in fixed
 
 
+def test_a_freeing_map_hands_items_to_a_core_freed_while_it_runs(monkeypatch):
+    """One call begun beside another task runs its first items in the calling thread; once
+    the task ends, the next items go to the pool while the caller works on. The results
+    keep their order."""
+    import threading
+    import time
+
+    monkeypatch.setattr("os.cpu_count", lambda: 2)
+    started, release = threading.Event(), threading.Event()
+
+    def sibling(_):
+        started.set()
+        release.wait(10)
+
+    def item(k):
+        if k == 1:  # the sibling ends during the second item
+            release.set()
+            for _ in range(2000):
+                if free_cores() > 1:
+                    break
+                time.sleep(0.005)
+        time.sleep(0.05)
+        return k, threading.get_ident()
+
+    def mapping(_):
+        started.wait(10)
+        with freeing_map(None, 8) as (_, pmap):
+            out = list(pmap(item, range(8)))
+        return out, threading.get_ident()
+
+    _, (out, me) = relayed_map([sibling, mapping], 2)
+    assert [k for k, _ in out] == list(range(8))
+    threads = [t for _, t in out]
+    assert threads[:2] == [me, me]
+    assert any(t != me for t in threads[2:])
+
+
 @pytest.mark.parametrize("n_jobs", [1, 2, 3])
 def test_thread_map_keeps_input_order(n_jobs):
     with thread_map(n_jobs) as pmap:

@@ -162,9 +162,39 @@ def freeing_map(
             return
 
         def mapped(fn: Callable[..., T], *iterables: Iterable[Any]) -> Iterator[T]:
-            return pmap(fn, *iterables) if free_cores() > 1 else map(fn, *iterables)
+            if free_cores() > 1:
+                return pmap(fn, *iterables)
+            return _taking_freed_cores(pool_submit, n - 1, fn, zip(*iterables))
 
+        pool_submit = pmap.__self__.submit  # type: ignore[attr-defined]  # pool.map's executor
         yield n, mapped
+
+
+def _taking_freed_cores(
+    submit: Callable[..., Any], n_workers: int, fn: Callable[..., T],
+    args: Iterable[tuple[Any, ...]],
+) -> Iterator[T]:
+    """``fn`` over ``args`` in order, in the calling thread, except that whenever a core
+    becomes free (:func:`free_cores`, less the items already handed out) the next items are
+    handed to the pool's ``submit`` (at most ``n_workers`` at once) while the caller goes on.
+
+    A map that began beside another task, one core free then, takes the second core as
+    soon as that task ends: replicates started beside another sub-band (``bench_e2e`` case
+    b: the last sub-band's 4 s of replicates on one core while the other was idle). Each
+    item is computed alone, so the results are those of the built-in ``map``."""
+    items = list(args)
+    futures: dict[int, Any] = {}
+    ahead = 0  # the next item not yet handed out or run
+    for i in range(len(items)):
+        ahead = max(ahead, i + 1)
+        while ahead < len(items):
+            in_flight = sum(not f.done() for f in futures.values())
+            if in_flight >= n_workers or free_cores() - 1 - in_flight < 1:
+                break
+            futures[ahead] = submit(fn, *items[ahead])
+            ahead += 1
+        future = futures.pop(i, None)
+        yield future.result() if future is not None else fn(*items[i])
 
 
 def gather(

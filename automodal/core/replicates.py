@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from automodal.core import bootstrap, subspace
-from automodal.core.parallel import gather, thread_map, worker_count
+from automodal.core.parallel import freeing_map, gather, worker_count
 from automodal.core.pole_map import PoleMap
 from automodal.errors import InputError
 
@@ -43,15 +43,21 @@ def replicate_flops(m: int, n: int) -> float:
     return 9.0 * m**3 + 25.0 * n**3
 
 
+def _line_replicates_flops(
+    basis: subspace.RowBasis, H: np.ndarray, n: int, n_replicates: int
+) -> float:
+    """Work of :func:`run_replicates`: the Gram product and the replicates' eigenproblems."""
+    N, ny, nu = H.shape
+    m = basis.q * ny
+    return replicate_flops(m, n) * n_replicates + 4.0 * n_replicates * N * m * (ny + nu)
+
+
 def replicate_workers(
     jobs: int | None, basis: subspace.RowBasis, H: np.ndarray, n: int, n_replicates: int
 ) -> int:
-    """Worker threads :func:`run_replicates` uses: ``jobs`` if given, else all cores when
-    the Gram product and the replicates' eigenproblems pay for them."""
-    N, ny, nu = H.shape
-    m = basis.q * ny
-    gram = 4.0 * n_replicates * N * m * (ny + nu)
-    return worker_count(jobs, n_replicates, replicate_flops(m, n) * n_replicates + gram)
+    """Worker threads :func:`run_replicates` starts with: ``jobs`` if given, else all the
+    free cores when the Gram product and the replicates' eigenproblems pay for them."""
+    return worker_count(jobs, n_replicates, _line_replicates_flops(basis, H, n, n_replicates))
 
 
 def run_replicates(
@@ -64,7 +70,8 @@ def run_replicates(
     progress: Callable[[int], None] | None = None,
 ) -> list[bootstrap.ReplicateModes]:
     """All frequency-line replicates' modes: one batched Gram product, then stacked small
-    problems, in ``jobs`` threads (``None``: :func:`replicate_workers` decides).
+    problems, in ``jobs`` threads (``None``: the free cores, and any core freed while they
+    run, :func:`automodal.core.parallel.freeing_map`).
 
     Parameters
     ----------
@@ -86,7 +93,6 @@ def run_replicates(
     B = weights.shape[0]
     ny = H.shape[1]
     m = basis.q * ny
-    n_jobs = replicate_workers(jobs, basis, H, n, B)
 
     def work(r: range) -> list[bootstrap.ReplicateModes]:
         S = subspace.schur_complement(sums, slice(r.start, r.stop))
@@ -96,7 +102,7 @@ def run_replicates(
         )
 
     chunks = replicate_chunks(B, m, n)
-    with thread_map(n_jobs) as pmap:
+    with freeing_map(jobs, B, _line_replicates_flops(basis, H, n, B)) as (_, pmap):
         sums = subspace.gram_sums(basis, H, weights, map_fn=pmap)
         return gather(pmap(work, chunks), chunks, progress)
 
@@ -151,7 +157,6 @@ def _own_schur_replicates(
     sums are not linear in the FRF), stacked per chunk as in :func:`run_replicates`; the
     result does not depend on ``jobs``."""
     m = basis.q * ny
-    n_jobs = worker_count(jobs, n_replicates, replicate_flops(m, n) * n_replicates)
 
     def work(r: range) -> list[bootstrap.ReplicateModes]:
         Hb = [frf_of(b) for b in r]
@@ -162,7 +167,7 @@ def _own_schur_replicates(
         )
 
     chunks = replicate_chunks(n_replicates, m, n)
-    with thread_map(n_jobs) as pmap:
+    with freeing_map(jobs, n_replicates, replicate_flops(m, n) * n_replicates) as (_, pmap):
         return gather(pmap(work, chunks), chunks, progress)
 
 
