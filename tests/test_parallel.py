@@ -65,10 +65,10 @@ def test_a_task_waiting_for_its_own_split_gives_up_its_core(monkeypatch):
     assert worker_count(None, 100) == 4
 
 
-def test_a_freeing_map_takes_a_core_as_soon_as_it_is_free(monkeypatch):
-    """Begun beside another task (one core free), an automatic freeing map runs its calls
-    in the calling thread; once that task has ended, on two workers. Workers asked for are
-    the pool's."""
+def _beside_a_sibling(monkeypatch, task):
+    """``task(end_sibling)`` run on two cores beside a sibling task that holds one of them
+    until ``end_sibling()``, which returns once the sibling's core is free; returns
+    ``task``'s result and its thread."""
     import threading
     import time
 
@@ -79,25 +79,43 @@ def test_a_freeing_map_takes_a_core_as_soon_as_it_is_free(monkeypatch):
         started.set()
         release.wait(10)
 
-    def whose(_):
-        time.sleep(0.05)
-        return threading.get_ident()
+    def end_sibling():
+        release.set()
+        for _ in range(2000):
+            if free_cores() > 1:
+                return
+            time.sleep(0.005)
 
-    def refining(_):
+    def run(_):
         started.wait(10)
-        with freeing_map(None, 2) as (n, pmap):
-            before = set(pmap(whose, range(2)))
-            release.set()
-            for _ in range(2000):  # until the sibling has ended and freed its core
-                if free_cores() > 1:
-                    break
-                time.sleep(0.005)
-            after = set(pmap(whose, range(2)))
-        with freeing_map(2, 2) as (asked, amap):
-            fixed = set(amap(whose, range(2)))
-        return n, before, after, asked, fixed, threading.get_ident()
+        return task(end_sibling), threading.get_ident()
 
-    _, (n, before, after, asked, fixed, me) = relayed_map([sibling, refining], 2)
+    return relayed_map([sibling, run], 2)[1]
+
+
+def _whose(k):
+    import threading
+    import time
+
+    time.sleep(0.05)
+    return threading.get_ident()
+
+
+def test_a_freeing_map_takes_a_core_as_soon_as_it_is_free(monkeypatch):
+    """Begun beside another task (one core free), an automatic freeing map runs its calls
+    in the calling thread; once that task has ended, on two workers. Workers asked for are
+    the pool's."""
+
+    def refining(end_sibling):
+        with freeing_map(None, 2) as (n, pmap):
+            before = set(pmap(_whose, range(2)))
+            end_sibling()
+            after = set(pmap(_whose, range(2)))
+        with freeing_map(2, 2) as (asked, amap):
+            fixed = set(amap(_whose, range(2)))
+        return n, before, after, asked, fixed
+
+    (n, before, after, asked, fixed), me = _beside_a_sibling(monkeypatch, refining)
     assert n == 2 and before == {me}
     assert me not in after and len(after) == 2
     assert asked == 2 and me not in fixed
@@ -107,33 +125,17 @@ def test_a_freeing_map_hands_items_to_a_core_freed_while_it_runs(monkeypatch):
     """One call begun beside another task runs its first items in the calling thread; once
     the task ends, the next items go to the pool while the caller works on. The results
     keep their order."""
-    import threading
-    import time
 
-    monkeypatch.setattr("os.cpu_count", lambda: 2)
-    started, release = threading.Event(), threading.Event()
+    def mapping(end_sibling):
+        def item(k):
+            if k == 1:  # the sibling ends during the second item
+                end_sibling()
+            return k, _whose(k)
 
-    def sibling(_):
-        started.set()
-        release.wait(10)
-
-    def item(k):
-        if k == 1:  # the sibling ends during the second item
-            release.set()
-            for _ in range(2000):
-                if free_cores() > 1:
-                    break
-                time.sleep(0.005)
-        time.sleep(0.05)
-        return k, threading.get_ident()
-
-    def mapping(_):
-        started.wait(10)
         with freeing_map(None, 8) as (_, pmap):
-            out = list(pmap(item, range(8)))
-        return out, threading.get_ident()
+            return list(pmap(item, range(8)))
 
-    _, (out, me) = relayed_map([sibling, mapping], 2)
+    out, me = _beside_a_sibling(monkeypatch, mapping)
     assert [k for k, _ in out] == list(range(8))
     threads = [t for _, t in out]
     assert threads[:2] == [me, me]
