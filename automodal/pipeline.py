@@ -53,7 +53,6 @@ from automodal.core.clustering import TRASHBOX
 from automodal.core.from_time import as_frfdata
 from automodal.core.pole_map import PoleMap
 from automodal.core.reciprocity import apply_reciprocity
-from automodal.core.refine import LOCAL_HALF_BANDWIDTHS, MIN_LOCAL_LINES
 from automodal.errors import InputError
 from automodal.frfdata import FRFData
 from automodal.progress import ProgressCallback, counter, tell, within
@@ -548,10 +547,7 @@ def _identify(
     clusters = reference.cluster_against_reference(ref, reps, s.n_bootstrap, s.threshold)
     snr2 = None
     if p.variance is not None:
-        # each mode's SNR against the misfit at its own lines, as the refinement judges
-        snr2 = whitening.mode_snr2(ref.modal, p.z, p.variance) / whitening.local_dispersion(
-            H_ref, p.Hs, p.variance, p.omega, ref.modal.poles[ref.modal.oscillatory],
-            reach=LOCAL_HALF_BANDWIDTHS, min_lines=MIN_LOCAL_LINES)
+        snr2 = whitening.mode_snr2(ref.modal, p.z, p.variance) / ref_dispersion
     modes = summary.summarise_clusters(
         clusters.labels, clusters.rho, reps.poles, reps.shapes, reps.replicate,
         clusters.subspaces, ref.modes, p.scales, ref.contribution, s.n_bootstrap,

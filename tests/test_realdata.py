@@ -116,12 +116,9 @@ def test_weimar_steel_frame_output_only(tmp_path):
     assert len(extra) <= 3, extra
 
 
-LADISK_PEAKS_HZ = np.array([810.0, 900.0, 1518.0, 2640.0, 3008.0, 3669.0, 4128.0, 4164.0,
-                            4392.0])
-"""The peaks the LADISK hammer data's README names (of its weaker 3008-3162 Hz ones, 3008,
-the strongest). The 1518 Hz one is weak beside the others: from hit 1 alone it is physical
-only when each mode's SNR is judged against the misfit at its own lines, not the band's
-(:func:`automodal.core.whitening.local_dispersion`)."""
+LADISK_PEAKS_HZ = np.array([810.0, 900.0, 2640.0, 3008.0, 3669.0, 4128.0, 4164.0, 4392.0])
+"""The strong peaks the LADISK hammer data's README names (its 1518 Hz and 3008-3162 Hz
+ones are weaker; 3008 is the strongest of the latter)."""
 
 
 def _ladisk_hits(which: list[int]):

@@ -266,25 +266,3 @@ def test_a_rank_no_replicate_produced_does_not_count():
         np.ones(2), 100, 0.5, snr2=np.array([1e8, 1e8]), params=12,
     )
     assert mode.features["occurrence"] == pytest.approx(0.9) and mode.physical
-
-
-def test_local_dispersion_judges_each_pole_by_the_misfit_at_its_own_lines():
-    """A model that misses one resonance by far more than the noise and fits another to the
-    noise: the global dispersion is large for both, the local one only for the first; a
-    pole narrower than the lines takes its nearest lines."""
-    rng = np.random.default_rng(0)
-    omega = 2 * np.pi * np.linspace(5, 25, 2001)
-    s = 1j * omega
-    poles = 2 * np.pi * np.array([10 * (-0.01 + 1j), 20 * (-0.01 + 1j), 15 * (-1e-6 + 1j)])
-    H = sum(1 / (s - p) + 1 / (s - np.conj(p)) for p in poles[:2])[:, None, None]
-    var = np.full(H.shape, 1e-8)
-    noise = rng.standard_normal(H.shape) + 1j * rng.standard_normal(H.shape)
-    data = H + np.sqrt(var / 2) * noise
-    model = H.copy()
-    near_first = np.abs(omega - poles[0].imag) < 3 * abs(poles[0].real)
-    model[near_first] *= 1.01  # 1 % off at the first resonance: thousands of times the noise
-    local = whitening.local_dispersion(model, data, var, omega, poles, reach=5.0, min_lines=8)
-    assert whitening.dispersion(model, data, var, 4) > 100
-    assert local[0] > 1000
-    assert local[1] == pytest.approx(1.0, abs=0.3)
-    assert local[2] == pytest.approx(1.0, abs=0.8)  # 8 lines of noise only

@@ -106,8 +106,7 @@ standard deviations (measured on a velocity grid whose upper modes lie above the
 
 LOCAL_HALF_BANDWIDTHS = 5.0
 """Lines within this many half-bandwidths of a pole set the dispersion its statistics are
-judged against (:func:`duplicate_poles`, and each mode's SNR in the physicalness,
-:func:`automodal.core.whitening.local_dispersion`): its resonance and the shoulders where a
+judged against (:func:`duplicate_poles`): its resonance and the shoulders where a
 neighbour's bias shows."""
 
 MIN_LOCAL_LINES = 8

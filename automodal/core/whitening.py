@@ -157,54 +157,6 @@ def dispersion(H_model: np.ndarray, H: np.ndarray, variance: np.ndarray, n_state
     return max(1.0, whitened_residual(H_model, H, variance) / dof)
 
 
-def local_dispersion(
-    H_model: np.ndarray, H: np.ndarray, variance: np.ndarray, omega: np.ndarray,
-    poles: np.ndarray, *, reach: float, min_lines: int,
-) -> np.ndarray:
-    """:func:`dispersion` of a model at each pole's own lines.
-
-    A band's dispersion is set by where its model misses most: a strong resonance it fits
-    to 1e-3 of its height leaves a residual thousands of times the noise there, and
-    dividing every mode's SNR by it hides weak modes whose own lines the model fits to the
-    noise (the LADISK hammer hit 1: dispersion 5700, and its 1518 Hz mode, of 82
-    consistent replicates, left an SNR of 1.7 per parameter). Each pole is judged by the
-    lines within ``reach`` half-bandwidths of it (at least its ``min_lines`` nearest).
-
-    Parameters
-    ----------
-    H_model, H, variance : ndarray, shape (N, ny, nu)
-        Model, data and noise variance, as for :func:`whitened_residual`.
-    omega : ndarray, shape (N,)
-        The lines (rad/s), increasing.
-    poles : ndarray, shape (m,)
-        Continuous-time poles (rad/s) in the units of ``omega``.
-    reach : float
-        Half-bandwidths (``|Re lambda|``) on either side of ``Im lambda``.
-    min_lines : int
-        Fewest lines per pole.
-
-    Returns
-    -------
-    ndarray, shape (m,)
-        ``max(1, chi2 / dof)`` over each pole's lines (``dof`` two per real line and entry:
-        the model's parameters are the whole band's, a few per line at most).
-    """
-    N, ny, nu = H.shape
-    per_line = 2.0 * np.sum(np.abs(H_model - H) ** 2 / variance, axis=(1, 2))
-    total = np.concatenate([[0.0], np.cumsum(per_line)])
-    poles = np.asarray(poles, dtype=complex)
-    centre, half = np.abs(poles.imag), np.abs(poles.real)
-    lo = np.searchsorted(omega, centre - reach * half, side="left")
-    hi = np.searchsorted(omega, centre + reach * half, side="right")
-    short = hi - lo < min(min_lines, N)
-    if short.any():  # the nearest lines, as many as asked
-        mid = np.clip(np.searchsorted(omega, centre[short]), 0, N)
-        lo[short] = np.clip(mid - min_lines // 2, 0, max(0, N - min_lines))
-        hi[short] = np.minimum(lo[short] + min_lines, N)
-    chi2 = total[hi] - total[lo]
-    return np.maximum(1.0, chi2 / (2.0 * (hi - lo) * ny * nu))
-
-
 SNR_MAX_LINES = 1000
 """Lines (evenly spread) on which :func:`mode_snr2` forms its Gram matrix; the result is
 scaled to all lines."""
