@@ -161,12 +161,13 @@ def freeing_map(
             yield n, pmap
             return
 
+        submit = pmap.__self__.submit  # type: ignore[attr-defined]  # pool.map's executor
+
         def mapped(fn: Callable[..., T], *iterables: Iterable[Any]) -> Iterator[T]:
             if free_cores() > 1:
                 return pmap(fn, *iterables)
-            return _taking_freed_cores(pool_submit, n - 1, fn, zip(*iterables))
+            return _taking_freed_cores(submit, n - 1, fn, zip(*iterables))
 
-        pool_submit = pmap.__self__.submit  # type: ignore[attr-defined]  # pool.map's executor
         yield n, mapped
 
 

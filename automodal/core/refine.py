@@ -169,11 +169,11 @@ class PoleRefinement:
         in units of that entry's noise (the residue divided by the square root of the
         entry's separable variance, :func:`separable_weights`); large where the pole's
         terms are nearly collinear with another's. NaN where ``refined`` is False.
-    entry_variance : ndarray, shape (m, ny, nu), optional
+    entry_variance : ndarray, shape (m, ny, nu)
         Variance (``E |error|^2``, data units) of each residue entry under the noise
         variance as given, entry by entry: the residues are linear in the data, so the
         separable weights' estimate has the variance ``G V G^T`` whatever the weights.
-        NaN where ``refined`` is False; None when not computed.
+        NaN where ``refined`` is False.
     """
 
     poles: np.ndarray
@@ -183,7 +183,7 @@ class PoleRefinement:
     iterations: int
     residues: np.ndarray
     residue_variance: np.ndarray
-    entry_variance: np.ndarray | None = None
+    entry_variance: np.ndarray
 
     def frequency_damping(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Natural frequency (Hz) and damping ratio of each pole with their standard
