@@ -266,3 +266,38 @@ def test_a_rank_no_replicate_produced_does_not_count():
         np.ones(2), 100, 0.5, snr2=np.array([1e8, 1e8]), params=12,
     )
     assert mode.features["occurrence"] == pytest.approx(0.9) and mode.physical
+
+
+def test_mode_snr2_sums_over_the_lines_of_a_mode_narrower_than_the_line_step():
+    # one mode of half-power bandwidth a third of a line spacing and one broad mode, on
+    # 6000 lines: the SNR^2 from the default ~1000 lines must be that of all lines (even
+    # spread lines, one in six, missed or over-weighted the sharp peak)
+    N = 6000
+    theta = np.linspace(0.05, 2.5, N)
+    step = theta[1] - theta[0]
+    poles = [np.exp(-step / 6 + 1j * theta[2000] + 1j * 0.37 * step),
+             np.exp(-0.02 + 1j * 1.8)]
+    A = np.zeros((4, 4))
+    for k, mu in enumerate(poles):
+        A[2 * k:2 * k + 2, 2 * k:2 * k + 2] = [[mu.real, -mu.imag], [mu.imag, mu.real]]
+    B = np.array([[1.0], [0.0], [1.0], [0.0]])
+    C = np.array([[0.0, 1.0, 0.3, 1.0], [1.0, 1.0, 0.0, 2.0]])
+    model = ModalModel(A, B, C, np.zeros((2, 1)), 1.0)
+    z = np.exp(1j * theta)
+    var = np.full((N, 2, 1), 0.01) * np.linspace(1.0, 3.0, N)[:, None, None]
+    every = whitening.mode_snr2(model, z, var, max_lines=N)
+    default = whitening.mode_snr2(model, z, var)
+    np.testing.assert_allclose(default, every, rtol=0.02)
+
+
+def test_quadrature_lines_take_every_line_near_a_pole_and_weigh_the_rest():
+    z = np.exp(1j * np.linspace(0.1, 3.0, 5000))
+    mu = np.array([0.999 * z[1234]])
+    index, weight = whitening.quadrature_lines(z, mu, 500)
+    assert 450 <= index.size <= 550
+    assert set(range(1230, 1239)) <= set(index.tolist())
+    assert np.all(np.diff(index) > 0)
+    assert np.sum(weight) == pytest.approx(5000, rel=0.02)
+    all_index, all_weight = whitening.quadrature_lines(z[:400], mu, 500)
+    np.testing.assert_array_equal(all_index, np.arange(400))
+    np.testing.assert_array_equal(all_weight, 1.0)

@@ -158,8 +158,65 @@ def dispersion(H_model: np.ndarray, H: np.ndarray, variance: np.ndarray, n_state
 
 
 SNR_MAX_LINES = 1000
-"""Lines (evenly spread) on which :func:`mode_snr2` forms its Gram matrix; the result is
-scaled to all lines."""
+"""Lines on which :func:`mode_snr2` forms its Gram matrix (chosen by
+:func:`quadrature_lines`, each weighted by the lines it stands for)."""
+
+
+def quadrature_lines(
+    z: np.ndarray, poles: np.ndarray, budget: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """At most about ``budget`` of the lines ``z``, and weights, for sums over lines of
+    functions of the modal terms ``1 / (z - mu)``.
+
+    A modal term varies over a line distance ``s_k = min |z_k - mu| / h_k`` (``h_k`` the
+    spacing of the lines at ``z_k``): within a few lines of a lightly damped pole it
+    changes from line to line, far from every pole it is smooth. The lines are taken with
+    density ``d_k = min(1, kappa / s_k)`` (``kappa`` so that they number ``budget``, by
+    bisection), by systematic sampling of the cumulative density, each with weight
+    ``1 / d_k``: every line near a pole, sparse lines between. Even spread lines missed the
+    peak of a mode narrower than their step: the SNR^2 of a real 1518 Hz mode (half-power
+    bandwidth 0.6 of a line spacing, 3072 lines, one in three taken) came out at half its
+    value over all lines on one impact record and at twice it on another.
+
+    Parameters
+    ----------
+    z : ndarray, shape (N,)
+        Lines (ordered along the unit circle).
+    poles : ndarray
+        Poles of the terms (the conjugates are added).
+    budget : int
+        Lines wanted (all lines when ``N <= budget``).
+
+    Returns
+    -------
+    index : ndarray of int
+        Chosen lines, increasing.
+    weight : ndarray
+        Lines each stands for (1 where every line is taken).
+    """
+    z = np.asarray(z)
+    N = z.size
+    if N <= budget or np.size(poles) == 0:
+        return np.arange(N), np.ones(N)
+    mu = np.concatenate([np.ravel(poles), np.conj(np.ravel(poles))])
+    gap = np.abs(np.diff(z))
+    h = np.empty(N)
+    h[0], h[-1] = gap[0], gap[-1]
+    h[1:-1] = 0.5 * (gap[:-1] + gap[1:])
+    s = np.min(np.abs(z[:, None] - mu[None, :]), axis=1) / np.maximum(h, np.finfo(float).tiny)
+    s = np.maximum(s, np.finfo(float).tiny)
+
+    def count(kappa: float) -> float:
+        return float(np.sum(np.minimum(1.0, kappa / s)))
+
+    lo, hi = 0.0, float(np.max(s))
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if count(mid) < budget else (lo, mid)
+    d = np.minimum(1.0, hi / s)
+    steps = np.floor(np.cumsum(d) + 0.5)
+    index = np.flatnonzero(np.diff(np.concatenate([[0.0], steps])) > 0)
+    return index, 1.0 / d[index]
 
 
 def mode_snr2(
@@ -184,7 +241,7 @@ def mode_snr2(
     variance : ndarray, shape (N, ny, nu)
         Noise variance in the model's units.
     max_lines : int
-        Lines used (evenly spread); the SNRs are scaled by ``N`` over their number.
+        Lines the sums are taken over (:func:`quadrature_lines`, weighted).
 
     Returns
     -------
@@ -195,10 +252,10 @@ def mode_snr2(
     sel = modal.oscillatory
     if sel.size == 0 or modal.B is None:
         return np.zeros(sel.size)
-    N = z.size
-    sub = np.unique(np.linspace(0, N - 1, min(N, max_lines)).round().astype(int))
+    sub, weight = quadrature_lines(z, modal.mu[sel], max_lines)
     zs = z[sub]
-    w = np.sqrt(2.0 / variance[sub])  # real inner products of 2 |x|^2 / var
+    # real inner products of 2 |x|^2 / var, each line standing for ``weight`` lines
+    w = np.sqrt(2.0 * weight[:, None, None] / variance[sub])
     CV = (modal.C @ modal.V)[:, sel]
     L = modal.modal_inputs[sel]
     mu = modal.mu[sel]
@@ -210,11 +267,10 @@ def mode_snr2(
         for r, t in enumerate(((a + b) * w, 1j * (a - b) * w)):
             cols[2 * i + r] = np.concatenate([t.real.ravel(), t.imag.ravel()])
     gram = cols @ cols.T
-    scale = N / sub.size
     try:
         inv = np.linalg.pinv(gram, rcond=1e-12, hermitian=True)
     except np.linalg.LinAlgError:
-        return np.diag(gram)[0::2] * scale
+        return np.diag(gram)[0::2]
     out = np.empty(m)
     for i in range(m):
         block = inv[2 * i : 2 * i + 2, 2 * i : 2 * i + 2]
@@ -222,4 +278,4 @@ def mode_snr2(
             out[i] = np.linalg.inv(block)[0, 0]
         except np.linalg.LinAlgError:
             out[i] = 0.0
-    return np.maximum(out, 0.0) * scale
+    return np.maximum(out, 0.0)
