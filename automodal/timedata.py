@@ -42,7 +42,8 @@ class TimeSeries:
     ------
     InputError
         If the arrays are not numbers, not 1-D or 2-D, have no sample or channel, hold
-        non-finite values or differ in their number of samples, if a name list has the
+        non-finite values or samples above :data:`MAX_SAMPLE_MAGNITUDE`, or differ in their
+        number of samples, if a name list has the
         wrong length, or if ``sample_rate`` is not a positive finite number.
     """
 
@@ -111,7 +112,20 @@ def _as_channels(values: Any, label: str, source: str | None) -> np.ndarray:
     n_bad = arr.size - int(np.count_nonzero(np.isfinite(arr)))
     if n_bad:
         raise InputError(f"the {label} have {n_bad} non-finite value(s) (NaN or inf)", source)
+    peak = float(np.max(np.abs(arr)))
+    if peak > MAX_SAMPLE_MAGNITUDE:
+        raise InputError(f"the {label} have samples up to {peak:.3g}, above "
+                         f"{MAX_SAMPLE_MAGNITUDE:.0e}: their spectra would overflow; give "
+                         "them in other units", source)
     return arr
+
+
+MAX_SAMPLE_MAGNITUDE = 1e100
+"""Largest sample magnitude accepted. Spectra sum products of samples over whole records
+(up to about 1e8 samples), which must stay far from the overflow at 1.8e308: samples of
+1e200 gave infinite H1 estimates, refused later as "non-finite FRFs" of data that had none.
+The FRF's own limit is :data:`automodal.core.checks.MAX_MAGNITUDE`; no unit system puts a
+measured signal near either."""
 
 
 def _names(names: list[str], n: int, prefix: str, side: str, source: str | None) -> list[str]:

@@ -343,6 +343,8 @@ REFUSALS = [
      "names no channel"),
     ("mat-no-variable", _mat_without_samples, ["--sample-rate", "100"], "variables found: rate, x"),
     ("nan-samples", bad_npy(_with_nan()), ["--sample-rate", "100"], "non-finite"),
+    ("huge-samples", bad_csv(["a", "b", "c"], _noise() * 1e200), ["--sample-rate", "100"],
+     "samples up to"),
     ("too-short-1d", bad_npy(np.random.default_rng(0).standard_normal(40)),
      ["--sample-rate", "100"], "too short"),
     ("rate-contradicts-time", bad_csv(["t", "a", "b"], np.column_stack(
