@@ -98,11 +98,12 @@ def test_qr_and_gram_paths_give_the_same_subspace_on_noisy_data(outputs, inputs,
         assert np.max(subspace_angles(O_qr, O_gr)) < 1e-8
 
 
-@pytest.mark.parametrize("kind", ["monomial", "orthonormal"])
+@pytest.mark.parametrize("kind", ["monomial", "orthonormal", "orthonormal-own-sums"])
 @pytest.mark.parametrize("chunk_bytes", [64 * 2**20, 5_000])
 def test_gram_sums_are_the_weighted_sums_they_define(kind, chunk_bytes):
     """Every block of the Gram sums equals its definition, summed line by line, whatever
-    the chunks and the map (a thread pool gives the very same numbers)."""
+    the chunks and the map (a thread pool gives the very same numbers); the orthonormal
+    basis's sums formed in monomials and turned into it too."""
     from concurrent.futures import ThreadPoolExecutor
 
     rng = np.random.default_rng(4)
@@ -110,7 +111,13 @@ def test_gram_sums_are_the_weighted_sums_they_define(kind, chunk_bytes):
     z = np.exp(1j * np.linspace(0.3, 2.0, N))
     H = rng.standard_normal((N, ny, nu)) + 1j * rng.standard_normal((N, ny, nu))
     w = rng.poisson(1.0, (B, N)).astype(float)
-    basis = subspace.row_basis(z, q, kind)
+    basis = subspace.row_basis(z, q, kind.removesuffix("-own-sums"))
+    if kind == "orthonormal":
+        assert basis.from_monomial is not None  # well conditioned: sums in monomials
+        mono = z[None, :] ** np.arange(q)[:, None]
+        np.testing.assert_allclose(basis.from_monomial @ mono, basis.values, atol=1e-13)
+    elif kind == "orthonormal-own-sums":
+        basis = subspace.RowBasis(basis.values, basis.shift, basis.p0, False)
     sums = subspace.gram_sums(basis, H, w, chunk_bytes=chunk_bytes)
     with ThreadPoolExecutor(2) as pool:
         threaded = subspace.gram_sums(basis, H, w, chunk_bytes=chunk_bytes, map_fn=pool.map)
@@ -293,3 +300,30 @@ def test_qr_observability_of_fewer_columns_than_the_order_is_completed():
     np.testing.assert_allclose(O.T @ O, np.eye(10), atol=1e-12)
     np.testing.assert_allclose(sv[:9], np.linalg.svd(l22, compute_uv=False))
     assert sv[9] == 0.0
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_the_default_row_basis_keeps_the_modes_of_noisy_data(seed):
+    """With noise the row basis weighs the SVD's rows: the default (orthonormal over the
+    lines) keeps them as white as the noise over the lines. A 9-DOF chain seen by 5 of its
+    masses, 1 % additive noise, noise-weighted, over-sized to 36 states: 8-9 of the 9 modes
+    within 0.5 % on seeds 0-5, where monomial rows gave 4."""
+    from automodal.core import noise as noise_model
+    from automodal.core import whitening
+
+    system = sim.damp(sim.chain(9), "rayleigh", zeta=0.008)
+    freq = sim.frequency_lines(1.1 * sim.natural_frequencies_hz(system).max(), 3000)
+    outputs = [0, 1, 3, 4, 5]
+    data, modes = sim.simulate_test(system, outputs, [8], freq, "displacement", noise=0.01,
+                                    seed=seed, noise_kind="additive")
+    w = 2 * np.pi * data.frequency
+    T = bilinear.default_scale(w[0], w[-1])
+    z = bilinear.to_unit_circle(w, T)
+    weights, scales = whitening.whitening(noise_model.estimate_noise(data.frf).variance)
+    Hs = data.frf / scales[None, :, None]
+    model = subspace.identify(z, Hs, 36, T, q=subspace.block_rows(36, len(outputs)),
+                              weights=weights, scale=False)
+    lam = bilinear.poles_d2c(np.linalg.eigvals(model.Ad), T)
+    lam = lam[lam.imag > 0]
+    found = [np.min(np.abs(lam - p)) / abs(p) < 5e-3 for p in modes.poles]
+    assert sum(found) >= 8, found
