@@ -203,8 +203,10 @@ def quadrature_lines(
     h = np.empty(N)
     h[0], h[-1] = gap[0], gap[-1]
     h[1:-1] = 0.5 * (gap[:-1] + gap[1:])
-    s = np.min(np.abs(z[:, None] - mu[None, :]), axis=1) / np.maximum(h, np.finfo(float).tiny)
-    s = np.maximum(s, np.finfo(float).tiny)
+    dist = np.full(N, np.inf)
+    for m in mu:  # pole by pole: memory of the lines only (not lines x poles)
+        np.minimum(dist, np.abs(z - m), out=dist)
+    s = np.maximum(dist / np.maximum(h, np.finfo(float).tiny), np.finfo(float).tiny)
 
     def count(kappa: float) -> float:
         return float(np.sum(np.minimum(1.0, kappa / s)))
