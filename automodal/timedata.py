@@ -43,8 +43,8 @@ class TimeSeries:
     InputError
         If the arrays are not numbers, not 1-D or 2-D, have no sample or channel, hold
         non-finite values or samples above :data:`MAX_SAMPLE_MAGNITUDE`, or differ in their
-        number of samples, if a name list has the
-        wrong length, or if ``sample_rate`` is not a positive finite number.
+        number of samples, if a name list has the wrong length, or if ``sample_rate`` is not
+        a positive finite number.
     """
 
     outputs: np.ndarray

@@ -495,7 +495,7 @@ def gram_sums(
     yu = tot[:, n_a : n_a * (1 + ny * nu)].reshape(shape_a + (ny, nu))
     yy = tot[:, n_a * (1 + ny * nu) :].reshape(B, pairs.size, ny, ny)
     return GramSums(uu=uu, yu=yu, yy=yy, q=q, toeplitz=toeplitz,
-                    transform=None if basis.monomial else basis.from_monomial)
+                    transform=basis.from_monomial)
 
 
 def _congruence(L: np.ndarray, g: np.ndarray) -> np.ndarray:
