@@ -149,7 +149,7 @@ def congruence_gram_sums(z: np.ndarray):
         if basis.monomial:
             return DEFAULT_GRAM_SUMS(basis, H, weights, **kw)
         s = DEFAULT_GRAM_SUMS(subspace.monomial_basis(z, basis.q), H, weights, **kw)
-        return CongruenceSums(uu=s.uu, yu=s.yu, yy=s.yy, q=s.q, toeplitz=True,
+        return CongruenceSums(uu=s.uu, yu=s.yu, yy=s.yy, q=s.q, kind="toeplitz",
                               C=monomial_coefficients(basis))
 
     return gram_sums
@@ -169,7 +169,7 @@ def gram_routes(path: Path, true: np.ndarray) -> dict:
     t_mono = time.perf_counter() - t0
     S_orth = subspace.schur_complement(s_orth)
     S_cong = subspace.schur_complement(CongruenceSums(
-        uu=s_mono.uu, yu=s_mono.yu, yy=s_mono.yy, q=q, toeplitz=True, C=C))
+        uu=s_mono.uu, yu=s_mono.yu, yy=s_mono.yy, q=q, kind="toeplitz", C=C))
     out = {"q": q, "cond": subspace._monomial_gram_cond(prep.z, q), "t_orth": t_orth,
            "t_mono": t_mono, "rel": float(np.abs(S_cong - S_orth).max() / np.abs(S_orth).max())}
     for name, S in (("orth", S_orth), ("cong", S_cong)):

@@ -98,26 +98,28 @@ def test_qr_and_gram_paths_give_the_same_subspace_on_noisy_data(outputs, inputs,
         assert np.max(subspace_angles(O_qr, O_gr)) < 1e-8
 
 
-@pytest.mark.parametrize("kind", ["monomial", "orthonormal", "orthonormal-own-sums"])
+@pytest.mark.parametrize("kind", ["monomial", "orthonormal", "orthonormal-own-sums",
+                                  "orthonormal-narrow"])
 @pytest.mark.parametrize("chunk_bytes", [64 * 2**20, 5_000])
 def test_gram_sums_are_the_weighted_sums_they_define(kind, chunk_bytes):
     """Every block of the Gram sums equals its definition, summed line by line, whatever
-    the chunks and the map (a thread pool gives the very same numbers); the orthonormal
-    basis's sums formed in monomials and turned into it too."""
+    the chunks and the map (a thread pool gives the very same numbers): the monomial power
+    sums, the orthonormal basis's sums formed in its product basis (on a wide arc and on a
+    narrow one, where the monomials' Gram matrix has a condition of 1e16), and its own
+    ``q^2`` products."""
     from concurrent.futures import ThreadPoolExecutor
 
     rng = np.random.default_rng(4)
     N, ny, nu, q, B = 57, 3, 2, 4, 5
-    z = np.exp(1j * np.linspace(0.3, 2.0, N))
+    arc = (0.3, 0.31) if kind == "orthonormal-narrow" else (0.3, 2.0)
+    z = np.exp(1j * np.linspace(*arc, N))
     H = rng.standard_normal((N, ny, nu)) + 1j * rng.standard_normal((N, ny, nu))
     w = rng.poisson(1.0, (B, N)).astype(float)
-    basis = subspace.row_basis(z, q, kind.removesuffix("-own-sums"))
-    if kind == "orthonormal":
-        assert basis.from_monomial is not None  # well conditioned: sums in monomials
-        mono = z[None, :] ** np.arange(q)[:, None]
-        np.testing.assert_allclose(basis.from_monomial @ mono, basis.values, atol=1e-13)
-    elif kind == "orthonormal-own-sums":
+    basis = subspace.row_basis(z, q, kind.split("-")[0])
+    expected = {"monomial": "toeplitz", "orthonormal-own-sums": "direct"}.get(kind, "product")
+    if kind == "orthonormal-own-sums":
         basis = subspace.RowBasis(basis.values, basis.shift, basis.p0, False)
+    assert basis.sums_kind == expected
     sums = subspace.gram_sums(basis, H, w, chunk_bytes=chunk_bytes)
     with ThreadPoolExecutor(2) as pool:
         threaded = subspace.gram_sums(basis, H, w, chunk_bytes=chunk_bytes, map_fn=pool.map)
@@ -133,6 +135,29 @@ def test_gram_sums_are_the_weighted_sums_they_define(kind, chunk_bytes):
         assert np.abs(gyy - yy.real).max() < 1e-12 * scale
         for got, again in zip(sums.blocks(b), threaded.blocks(b)):
             assert np.array_equal(got, again)
+    stacked = sums.blocks(slice(1, 4))  # a slice of replicates: each as if alone
+    for got, b in zip(zip(*stacked), range(1, 4)):
+        for x, y in zip(got, sums.blocks(b)):
+            np.testing.assert_allclose(x, y, rtol=0, atol=1e-13 * np.abs(y).max())
+
+
+def test_product_basis_represents_the_products_and_refuses_points_off_the_circle():
+    """``p_i conj(p_j)`` is a combination of 2q - 1 orthonormal real functions on the unit
+    circle, to 1e-13 on a wide arc and within the tolerance (1e-10) on an arc of 0.002 rad
+    (monomial Gram condition 1e17); off the circle (about the origin) the products leave
+    that span and no product basis is given."""
+    for arc, N, q, tol in [((0.1, 3.0), 800, 7, 1e-13), ((0.1, 0.102), 3000, 10, 1e-10)]:
+        z = np.exp(1j * np.linspace(*arc, N))
+        basis = subspace.orthonormal_basis(z, q)
+        pb = basis.products
+        G, M = pb.functions, pb.coefficients
+        assert G.shape == (2 * q - 1, N) and np.isrealobj(G)
+        np.testing.assert_allclose(G @ G.T, np.eye(2 * q - 1), atol=1e-12)
+        A = basis.values[:, None, :] * basis.values[None, :, :].conj()
+        R = np.einsum("ijc,ck->ijk", M, G) - A
+        assert np.max(np.linalg.norm(R, axis=2) / np.linalg.norm(A, axis=2)) < tol
+    z = 0.2 + np.exp(1j * np.linspace(0.1, 3.0, 200))
+    assert subspace.orthonormal_basis(z, 5).sums_kind == "direct"
 
 
 def test_weighted_gram_equals_qr_on_repeated_lines():
