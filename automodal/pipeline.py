@@ -452,15 +452,16 @@ def _noise_of_scaled(noise_weighted: Prepared, p: Prepared) -> np.ndarray | None
 
 def _choose_orders(
     p: Prepared, s: Settings, rank: int | None, split_work: float | None, warnings: list[str],
-    reference_cap: int | None = None,
+    reference_cap: int | None = None, stages: dict | None = None,
 ) -> tuple[Prepared, order.OrderChoice]:
     """The order scan's choice on the noise weighting, or on the envelope weighting when no
     model is near the data in the noise's terms (the data then prepared for it; the
-    warning said once). ``rank``, ``split_work`` and ``reference_cap`` (a sub-band's: its
-    band's reference order) as for :func:`automodal.core.order.select_orders`."""
+    warning said once). ``rank``, ``split_work``, ``reference_cap`` (a sub-band's: its
+    band's reference order) and ``stages`` (a dict kept by the caller for every call on
+    ``p``) as for :func:`automodal.core.order.select_orders`."""
     choice = order.select_orders(p.z, p.Hs, p.line_weights, s.max_order, p.data.source,
                                  variance=p.variance, rank=rank, split_work=split_work,
-                                 reference_cap=reference_cap)
+                                 reference_cap=reference_cap, stages=stages)
     if p.variance is not None and choice.rule == "floor":
         # the noise weighting gives the order test nothing to stand on, so the envelope path
         # runs instead
@@ -473,7 +474,7 @@ def _choose_orders(
         noise_complete = choice.complete
         choice = order.select_orders(p.z, p.Hs, p.line_weights, s.max_order, p.data.source,
                                      rank=rank, split_work=split_work,
-                                     reference_cap=reference_cap)
+                                     reference_cap=reference_cap, stages=stages)
         # a noise scan cut short might have ended otherwise had it gone on
         choice = replace(choice, complete=choice.complete and noise_complete)
     return p, choice
@@ -501,7 +502,8 @@ def _identify(
     split_work = sub_bands.WORK_LIMIT if s.sub_bands and s.max_order is None else None
     tell(progress, "orders")
     prepared = p
-    p, choice = _choose_orders(prepared, s, rank, split_work, warnings, parent_order)
+    stages: dict = {}  # the scan's stages, for a rescan below
+    p, choice = _choose_orders(prepared, s, rank, split_work, warnings, parent_order, stages)
     n_bands = 1
     if s.sub_bands and s.max_order is None and (parent_order is None
                                                  or choice.reference < parent_order):
@@ -525,7 +527,7 @@ def _identify(
         # (a 9-DOF chain over 51 201 lines: n0 = 56 there against 36 when scanned on); a
         # scan that ended on its own would only be repeated (a dense grid's sub-band: 1.4 s
         # of a 12.5 s file)
-        p, choice = _choose_orders(prepared, s, rank, None, warnings, parent_order)
+        p, choice = _choose_orders(prepared, s, rank, None, warnings, parent_order, stages)
     if s.max_order is not None and choice.n0 >= choice.limit:
         warnings.append(
             f"the largest model order {s.max_order} (states, two per mode: at most "

@@ -154,3 +154,32 @@ def test_a_scan_ended_by_the_split_rule_is_marked_incomplete():
     same = order.select_orders(z, Hs, lw, split_work=ample)
     assert same.n0 == whole.n0 and same.reference == whole.reference
     assert np.array_equal(same.scanned, whole.scanned)
+
+
+def test_a_rescan_reuses_the_stages_it_shares_and_chooses_as_a_fresh_scan(monkeypatch):
+    """A scan cut by the split rule and redone without it (the band not split after all)
+    takes the stages it went through from the dict the two calls share: the same choice as
+    a fresh scan, with no stage scanned twice."""
+    z, Hs, lw = _exact(n_dof=12, outputs=(0, 5, 11), n_lines=600)
+    calls = []
+    real = order.misfit_scan
+
+    def counted(*args, **kwargs):
+        calls.append(int(args[2][-1]))  # the stage's largest order
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(order, "misfit_scan", counted)
+    fresh = order.select_orders(z, Hs, lw)
+    n_fresh = len(calls)
+    calls.clear()
+    stages: dict = {}
+    cut = order.select_orders(z, Hs, lw, split_work=1.0, stages=stages)
+    assert not cut.complete and len(calls) >= 1
+    first = list(calls)
+    again = order.select_orders(z, Hs, lw, stages=stages)
+    assert sorted(calls) == sorted(set(calls))  # no stage twice
+    assert len(calls) == n_fresh and calls[: len(first)] == first
+    assert again.n0 == fresh.n0 and again.reference == fresh.reference
+    assert np.array_equal(again.scanned, fresh.scanned)
+    np.testing.assert_array_equal(again.misfit, fresh.misfit)
+    assert [m[0] for m in again.models] == [m[0] for m in fresh.models]
