@@ -461,7 +461,8 @@ def _choose_orders(
     ``p``) as for :func:`automodal.core.order.select_orders`."""
     choice = order.select_orders(p.z, p.Hs, p.line_weights, s.max_order, p.data.source,
                                  variance=p.variance, rank=rank, split_work=split_work,
-                                 reference_cap=reference_cap, stages=stages)
+                                 reference_cap=reference_cap, stages=stages,
+                                 jobs=s.jobs)
     if p.variance is not None and choice.rule == "floor":
         # the noise weighting gives the order test nothing to stand on, so the envelope path
         # runs instead
@@ -474,7 +475,8 @@ def _choose_orders(
         noise_complete = choice.complete
         choice = order.select_orders(p.z, p.Hs, p.line_weights, s.max_order, p.data.source,
                                      rank=rank, split_work=split_work,
-                                     reference_cap=reference_cap, stages=stages)
+                                     reference_cap=reference_cap, stages=stages,
+                                     jobs=s.jobs)
         # a noise scan cut short might have ended otherwise had it gone on
         choice = replace(choice, complete=choice.complete and noise_complete)
     return p, choice

@@ -261,3 +261,29 @@ def test_misfit_scan_stops_early_on_a_plateau():
     # without stop_after, every order is evaluated
     all_orders, _ = misfit_scan(z, H, orders, subspace.row_basis(z, 21))
     np.testing.assert_array_equal(all_orders, orders)
+
+
+def test_misfit_scan_is_the_same_on_any_number_of_workers():
+    """The orders are evaluated in batches on the workers and the stop rule sees them in
+    order: the same orders, misfits, residuals and models whatever ``jobs``."""
+    z, H = _two_mode_siso()
+    rng = np.random.default_rng(3)
+    H = H + 1e-3 * (rng.standard_normal(H.shape) + 1j * rng.standard_normal(H.shape))
+    variance = np.full(H.shape, 2e-6)
+    orders = np.arange(2, 31, 2)
+    basis = subspace.row_basis(z, 31)
+    runs = []
+    for jobs in (1, 2, 3):
+        models: list = []
+        got = misfit_scan(z, H, orders, basis, stop_after=6, patience=6, variance=variance,
+                          params=2, z_alarm=3.0, models=models, jobs=jobs)
+        runs.append((got, models))
+    (first, models1) = runs[0]
+    assert first[0].size < orders.size  # the stop rule ended it early
+    for got, models in runs[1:]:
+        for a, b in zip(first, got):
+            np.testing.assert_array_equal(a, b)
+        assert [m[0] for m in models] == [m[0] for m in models1]
+        for (_, lam1, cv1), (_, lam, cv) in zip(models1, models):
+            np.testing.assert_array_equal(lam1, lam)
+            np.testing.assert_array_equal(cv1, cv)

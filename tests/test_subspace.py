@@ -352,3 +352,23 @@ def test_the_default_row_basis_keeps_the_modes_of_noisy_data(seed):
     lam = lam[lam.imag > 0]
     found = [np.min(np.abs(lam - p)) / abs(p) < 5e-3 for p in modes.poles]
     assert sum(found) >= 8, found
+
+
+def test_schur_from_data_is_the_same_on_any_number_of_workers():
+    """Its chunks of lines are fixed by the size alone and added in order."""
+    rng = np.random.default_rng(5)
+    N, ny, nu, q = 2500, 4, 2, 6
+    z = np.exp(1j * np.linspace(0.2, 2.8, N))
+    H = rng.standard_normal((N, ny, nu)) + 1j * rng.standard_normal((N, ny, nu))
+    basis = subspace.row_basis(z, q)
+    w = rng.poisson(1.0, N).astype(float)
+    one = subspace.schur_from_data(basis, H, w, jobs=1)
+    for jobs in (2, None):
+        np.testing.assert_array_equal(subspace.schur_from_data(basis, H, w, jobs=jobs), one)
+    # and it is the Schur complement of the whole data matrix
+    U, Y = subspace.data_matrices(basis.values * np.sqrt(w)[None, :], H)
+    Z = np.vstack([U, Y])
+    G = (Z @ Z.conj().T).real
+    m = q * nu
+    whole = G[m:, m:] - G[m:, :m] @ np.linalg.solve(G[:m, :m], G[:m, m:])
+    np.testing.assert_allclose(one, whole, rtol=0, atol=1e-10 * np.abs(whole).max())
