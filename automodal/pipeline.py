@@ -551,7 +551,7 @@ def _identify(
     clusters = reference.cluster_against_reference(ref, reps, s.n_bootstrap, s.threshold)
     snr2 = None
     if p.variance is not None:
-        snr2 = whitening.mode_snr2(ref.modal, p.z, p.variance) / ref_dispersion
+        snr2 = whitening.mode_snr2(ref.modal, p.z, p.variance, jobs=s.jobs) / ref_dispersion
     modes = summary.summarise_clusters(
         clusters.labels, clusters.rho, reps.poles, reps.shapes, reps.replicate,
         clusters.subspaces, ref.modes, p.scales, ref.contribution, s.n_bootstrap,

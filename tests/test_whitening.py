@@ -288,6 +288,8 @@ def test_mode_snr2_sums_over_the_lines_of_a_mode_narrower_than_the_line_step():
     every = whitening.mode_snr2(model, z, var, max_lines=N)
     default = whitening.mode_snr2(model, z, var)
     np.testing.assert_allclose(default, every, rtol=0.02)
+    for jobs in (2, None):  # the columns and the parts of the Gram matrix on workers
+        np.testing.assert_array_equal(whitening.mode_snr2(model, z, var, jobs=jobs), default)
 
 
 def test_quadrature_lines_take_every_line_near_a_pole_and_weigh_the_rest():
