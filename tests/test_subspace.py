@@ -146,9 +146,11 @@ def test_product_basis_represents_the_products_and_refuses_points_off_the_circle
     circle, to 1e-13 on a wide arc and within the tolerance (1e-10) on an arc of 0.002 rad
     (monomial Gram condition 1e17); off the circle (about the origin) the products leave
     that span and no product basis is given."""
-    for arc, N, q, tol in [((0.1, 3.0), 800, 7, 1e-13), ((0.1, 0.102), 3000, 10, 1e-10)]:
+    for arc, N, q, tol in [((0.1, 3.0), 800, 7, 1e-13), ((0.1, 0.102), 3000, 10, 1e-10),
+                           ((0.1, 0.102), 6000, 14, 1e-10)]:
         z = np.exp(1j * np.linspace(*arc, N))
         basis = subspace.orthonormal_basis(z, q)
+        assert basis.sums_kind == "product"
         pb = basis.products
         G, M = pb.functions, pb.coefficients
         assert G.shape == (2 * q - 1, N) and np.isrealobj(G)

@@ -259,7 +259,7 @@ def product_basis(z: np.ndarray, P: np.ndarray, shift: np.ndarray, p0: float
     rng = np.random.default_rng(0)
     x, y = rng.standard_normal((2, 2, q))
     targets = [P[-1][None, :] * P.conj(), P * P[-1].conj()[None, :],
-               (x @ P)[None, :] * (y @ P).conj()[None, :]]
+               (x @ P) * (y @ P).conj()]
     coefs = [M[-1], M[:, -1], np.einsum("ri,ijc,rj->rc", x, M, y)]
     for A, C in zip(targets, coefs):
         R = A - (C.real @ G + 1j * (C.imag @ G))
@@ -488,7 +488,7 @@ def _basis_products(basis: RowBasis, kind: str, columns: np.ndarray | None = Non
         return z[:, None] ** powers[None, :]
     if kind == "product":
         G = basis.products.functions
-        return (G if columns is None else G[np.asarray(columns)])[:, lines].T
+        return (G[:, lines] if columns is None else G[:, lines][np.asarray(columns)]).T
     cols = np.arange(q * q) if columns is None else np.asarray(columns)
     i, j = np.divmod(cols, q)
     return Pl[i].T * Pl[j].T.conj()
