@@ -494,17 +494,6 @@ def _basis_products(basis: RowBasis, kind: str, columns: np.ndarray | None = Non
     return Pl[i].T * Pl[j].T.conj()
 
 
-def sum_features(kind: str, q: int, ny: int, nu: int) -> int:
-    """Complex features per line of :func:`gram_sums` of a ``kind`` (see :class:`GramSums`):
-    basis products, each times the ``ny nu`` entries of ``H_k``, and the ``yy`` ones times
-    the ``ny^2`` entries of ``H_k H_k^H`` (its upper triangle in the product basis)."""
-    if kind == "toeplitz":
-        return (2 * q - 1) * (1 + ny * nu) + q * ny * ny
-    if kind == "product":
-        return (2 * q - 1) * (1 + ny * nu + ny * (ny + 1) // 2)
-    return q * q * (1 + ny * nu) + q * (q + 1) // 2 * ny * ny
-
-
 LINES_PER_PRODUCT = 4096
 """Lines a block of Gram features spans at least, memory permitting: the inner dimension of
 its product with the weights (BLAS runs near its peak from a few thousand on)."""
@@ -702,13 +691,14 @@ def single_schur(
     with many block rows on long records the sums did (51 201 lines, q = 41). Another
     basis's sums in its product basis (:class:`ProductBasis`) were never much faster than
     the data matrix for one data set, counting the product basis's making (0.81 to 9.5
-    times its time on nine sizes, ``N`` 800-51 201, ``q`` 14-41), so it takes the latter.
+    times its time on nine sizes, ``N`` 800-51 201, ``q`` 14-41), so it takes the latter
+    (on ``jobs`` worker threads, :func:`schur_from_data`).
     """
     N, ny, nu = H.shape
     q = basis.q
     if basis.monomial:
         data_cost = 2.0 * N * nu * (q * (nu + ny)) ** 2
-        sums_cost = 10.0 * 8.0 * N * sum_features("toeplitz", q, ny, nu)
+        sums_cost = 10.0 * 8.0 * N * ((2 * q - 1) * (1 + ny * nu) + q * ny * ny)
         if sums_cost < data_cost:
             return schur_complement(gram_sums(basis, H, weights))
     return schur_from_data(basis, H, weights, jobs=jobs)
