@@ -462,7 +462,7 @@ def _choose_orders(
     choice = order.select_orders(p.z, p.Hs, p.line_weights, s.max_order, p.data.source,
                                  variance=p.variance, rank=rank, split_work=split_work,
                                  reference_cap=reference_cap, stages=stages,
-                                 jobs=s.jobs)
+                                 jobs=s.jobs, min_block_rows=s.block_rows)
     if p.variance is not None and choice.rule == "floor":
         # the noise weighting gives the order test nothing to stand on, so the envelope path
         # runs instead
@@ -476,7 +476,7 @@ def _choose_orders(
         choice = order.select_orders(p.z, p.Hs, p.line_weights, s.max_order, p.data.source,
                                      rank=rank, split_work=split_work,
                                      reference_cap=reference_cap, stages=stages,
-                                     jobs=s.jobs)
+                                     jobs=s.jobs, min_block_rows=s.block_rows)
         # a noise scan cut short might have ended otherwise had it gone on
         choice = replace(choice, complete=choice.complete and noise_complete)
     return p, choice
@@ -530,6 +530,11 @@ def _identify(
         # scan that ended on its own would only be repeated (a dense grid's sub-band: 1.4 s
         # of a 12.5 s file)
         p, choice = _choose_orders(prepared, s, rank, None, warnings, parent_order, stages)
+    if s.block_rows is not None and choice.block_rows < s.block_rows:
+        warnings.append(
+            f"block rows {s.block_rows} asked for, but the {p.Hs.shape[0]} lines of"
+            f" [{p.band_hz[0]:g}, {p.band_hz[1]:g}] Hz allow a bootstrap replicate at most"
+            f" {choice.block_rows}: {choice.block_rows} used")
     if s.max_order is not None and choice.n0 >= choice.limit:
         warnings.append(
             f"the largest model order {s.max_order} (states, two per mode: at most "

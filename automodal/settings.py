@@ -26,6 +26,10 @@ MIN_ORDER = 4
 """Smallest ``max_order``: the order scan needs orders 2 and 4 (the command line's
 ``--order`` has the same lower bound)."""
 
+MIN_BLOCK_ROWS = 2
+"""Smallest ``block_rows``: the shift invariance that gives ``A`` compares block rows
+``1..q-1`` with ``2..q``, so it needs two."""
+
 
 class SettingsError(InputError, ValueError):
     """A setting outside its allowed values (the message names the field)."""
@@ -97,6 +101,17 @@ class Settings:
         is split at the valleys between resonance peaks into sub-bands, each identified on
         its own, and the modes merged (not when ``max_order`` is given). The five LADISK
         hammer hits (10 000 lines, one output) took 114 s as one model of 256 states.
+    block_rows : int or None
+        At least this many block rows ``q`` in the reference model and its bootstrap
+        replicates (in every sub-band), at least :data:`MIN_BLOCK_ROWS`; at most what a
+        replicate's lines allow (``2 * 0.6 N nu >= q (nu + ny)``; the report warns when
+        that cuts it). ``None`` (default): ``ceil(1.2 n / r) + 1`` for a reference of ``n``
+        states whose outputs show ``r`` directions above the noise. Many sensors on close
+        modes need more: on an 8 x 10 grid seen by 40 sensors (80 modes, 1 % noise) the
+        sub-bands' references found 5 of 36 and 13 of 27 of their modes with the default
+        ``q = 9`` and 34 and 27 with ``q = 18`` and 14 (``benchmarks/results_sub_band_rows.md``).
+        More rows cost time (a replicate's work grows as ``q^2``, its eigenvalues as
+        ``q^3``) and make the split into sub-bands finer.
     """
 
     band_hz: tuple[float, float] | None = None
@@ -111,6 +126,7 @@ class Settings:
     resample: str = "auto"
     weighting: str = "auto"
     sub_bands: bool = True
+    block_rows: int | None = None
 
     def __post_init__(self) -> None:
         self._check_band()
@@ -132,6 +148,11 @@ class Settings:
                              "a number in [0, 1]", closed_lo=True, closed_hi=True)
         self._check_interval("coalescence", self.coalescence, 0.0, math.inf,
                              "a finite number > 0")
+        if self.block_rows is not None and not (
+            _is_int(self.block_rows) and self.block_rows >= MIN_BLOCK_ROWS
+        ):
+            raise _refuse("block_rows", self.block_rows,
+                          f"None (automatic) or an integer >= {MIN_BLOCK_ROWS}")
         if not isinstance(self.sub_bands, bool):
             raise _refuse("sub_bands", self.sub_bands, "True or False")
         if not (isinstance(self.resample, str) and self.resample in RESAMPLE_CHOICES):

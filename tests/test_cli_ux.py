@@ -196,6 +196,24 @@ def test_an_order_below_what_the_data_need_is_said():
     assert not [w for w in json.loads(enough.stdout)["warnings"] if "model order" in w]
 
 
+def test_block_rows_are_raised_on_request_and_said_when_the_lines_cut_them(tmp_path):
+    help_text = " ".join(cli("identify", "--help").stdout.split())
+    assert "--block-rows Q" in help_text
+    raised = cli("identify", SAMPLE, "--block-rows", "30", "--json", *FAST)
+    assert raised.exit_code == 0
+    report = json.loads(raised.stdout)
+    assert report["settings"]["block_rows"] == 30
+    assert report["summary"]["n_physical"] == 6
+    assert not [w for w in report["warnings"] if "block rows" in w]
+    cut = cli("identify", SAMPLE, "--block-rows", "5000", "--json", *FAST)
+    said = [w for w in json.loads(cut.stdout)["warnings"] if "block rows 5000" in w]
+    assert said and all("allow a bootstrap replicate at most" in w for w in said)
+    never = tmp_path / "never.json"
+    low = cli("identify", SAMPLE, "--block-rows", "1", "-o", never, *FAST)
+    assert low.exit_code == 2 and "--block-rows" in low.stderr
+    assert not never.exists()
+
+
 def test_no_message_writes_a_range_with_a_dash():
     """Ranges are written [lo, hi] (a dash reads as a minus sign: "band -5-20 Hz")."""
     import re

@@ -125,6 +125,19 @@ def test_reference_block_rows_follow_the_outputs_rank():
     assert subspace.reference_block_rows(10, 1, 1) == 11
 
 
+def test_block_rows_asked_for_are_a_floor_the_lines_cap():
+    z, Hs, lw = _exact()
+    N, ny, nu = Hs.shape
+    auto = order.select_orders(z, Hs, lw)
+    assert auto.block_rows == subspace.block_rows(auto.reference, ny)
+    assert order.select_orders(z, Hs, lw, min_block_rows=2).block_rows == auto.block_rows
+    raised = order.select_orders(z, Hs, lw, min_block_rows=auto.block_rows + 5)
+    assert raised.block_rows == auto.block_rows + 5
+    assert raised.n0 == auto.n0 and raised.reference == auto.reference
+    budget = int(2.0 * order.BOOTSTRAP_LINE_FRACTION * N * nu) // (ny + nu)
+    assert order.select_orders(z, Hs, lw, min_block_rows=10 * N).block_rows == budget
+
+
 def test_order_off_the_noise_takes_the_floor_above_and_the_directions_below():
     """When the significant order's model does not fit the noise: the misfit floor when it
     lies above n0; below it, at most 4 states per output direction above the noise (when

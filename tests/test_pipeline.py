@@ -264,3 +264,20 @@ def test_mobility_and_accelerance_are_identified_as_their_receptance(quantity):
             assert m1.damping_ratio == pytest.approx(m0.damping_ratio, rel=1e-6, abs=1e-12)
     found = np.array([m.frequency_hz for m in r1.physical_modes])
     assert all(np.min(np.abs(found - f) / f) < 2e-3 for f in true), found
+
+
+def test_block_rows_asked_for_keep_noise_free_modes_exact():
+    """``Settings.block_rows`` raises the reference's block rows; an exact system is still
+    identified exactly (the rows change how noise is weighed, never an exact model)."""
+    from automodal.core import simulate as sim
+
+    system = sim.damp(sim.chain(4), "rayleigh", zeta=0.02)
+    true_hz = np.sort(sim.natural_frequencies_hz(system))
+    freq = sim.frequency_lines(1.25 * true_hz.max(), 600)
+    data, _ = sim.simulate_test(system, [0, 1, 2, 3], [3], freq[freq > 0], "displacement",
+                                noise=0.0)
+    res = identify(data, Settings(seed=0, n_bootstrap=8, block_rows=24, jobs=1))
+    assert res.orders["block_rows"] == 24
+    found = np.sort([m.frequency_hz for m in res.modes if m.physical])
+    assert found.size == true_hz.size
+    assert np.max(np.abs(found - true_hz) / true_hz) < 1e-6

@@ -8,6 +8,8 @@ about 95 % of the time (binomial spread over 100 draws: +- 4 %).
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 
@@ -326,6 +328,11 @@ def test_residue_shapes_are_the_rank_one_factor_whatever_the_channel_noise():
         ratio = shapes[:, r] / phi[r]
         np.testing.assert_allclose(ratio, ratio[0], rtol=1e-10)
     assert np.all(np.isnan(shapes[:, 2]))
+    # a negative variance (rounding) is no variance: that shape is unknown, and no warning
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        shapes = residue_shapes(R[:2], variance, np.array([1e-6, -1e-9]))
+    assert np.all(np.isfinite(shapes[:, 0])) and np.all(np.isnan(shapes[:, 1]))
 
 
 @pytest.mark.parametrize("noise", [0.0, 0.01])

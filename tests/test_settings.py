@@ -28,7 +28,7 @@ def test_defaults_are_valid_and_to_dict_is_unchanged():
     assert s.to_dict() == {
         "band_hz": None, "n_bootstrap": 100, "seed": 0, "max_order": None, "threshold": 0.8,
         "zeta_max": 0.2, "min_physicalness": 0.5, "coalescence": 1.0, "resample": "auto",
-            "weighting": "auto", "sub_bands": True,
+            "weighting": "auto", "sub_bands": True, "block_rows": None,
     }
     assert Settings(band_hz=(1, 20)).to_dict()["band_hz"] == [1.0, 20.0]
 
@@ -74,6 +74,14 @@ def test_max_order(value):
     assert "integer >= 4" in str(_refused("max_order", max_order=value))
     assert Settings(max_order=5).max_order == 5  # rounded down to 4 by the order selection
     assert Settings(max_order=None).max_order is None
+
+
+@pytest.mark.parametrize("value", [1, 0, -2, 4.0, "8", True])
+def test_block_rows(value):
+    assert "integer >= 2" in str(_refused("block_rows", block_rows=value))
+    assert Settings(block_rows=2).block_rows == 2
+    assert Settings(block_rows=np.int64(14)).to_dict()["block_rows"] == 14
+    assert Settings(block_rows=None).block_rows is None
 
 
 @pytest.mark.parametrize("value", [0, -1, 1.5, "2"])

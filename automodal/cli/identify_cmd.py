@@ -161,6 +161,10 @@ def _run_batch(input_path: str, outputs: tuple[str, ...], settings: Settings,
               help="Largest model order considered, in states: two per mode, so --order 12 "
               "finds at most 6 modes (default: automatic; a warning says when the order "
               "stopped the model short of the data).")
+@click.option("--block-rows", type=click.IntRange(2, 10000), default=None, metavar="Q",
+              help="At least Q block rows in the reference model and its replicates "
+              "(default: automatic, about 1.2 states per output direction). Many sensors on "
+              "close modes need more (docs/method.md 1, 'Known limit'); slower.")
 @click.option("--one-band", is_flag=True,
               help="Identify the band with one model even when it is costly (by default a "
               "band whose one model would be slow is split into sub-bands at the valleys "
@@ -198,6 +202,7 @@ def identify(
     resample: str,
     band: tuple[float, float] | None,
     max_order: int | None,
+    block_rows: int | None,
     jobs: int | None,
     plot_dir: str | None,
     geometry_path: str | None,
@@ -249,6 +254,7 @@ def identify(
             n_bootstrap=n_bootstrap,
             seed=seed,
             max_order=max_order,
+            block_rows=block_rows,
             jobs=jobs,
             sub_bands=not one_band,
             resample=resample,

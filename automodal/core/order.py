@@ -538,7 +538,8 @@ class OrderChoice:
     block_rows : int
         Block rows of the reference model
         (:func:`automodal.core.subspace.reference_block_rows` of the outputs' rank above
-        the noise, when known).
+        the noise, when known; at least ``min_block_rows`` of :func:`select_orders` as far
+        as the lines allow).
     complete : bool
         Whether the scan ended where it would have without ``split_work``: its last
         stage's order was below the one that ends a scan early (``split_above`` of
@@ -585,6 +586,7 @@ def select_orders(
     reference_cap: int | None = None,
     stages: dict | None = None,
     jobs: int | None = None,
+    min_block_rows: int | None = None,
 ) -> OrderChoice:
     """Scan the misfit and choose ``n0`` and the reference order.
 
@@ -627,6 +629,10 @@ def select_orders(
         the calls on the same data.
     jobs : int or None
         Worker threads of the scan (:func:`misfit_scan`).
+    min_block_rows : int, optional
+        At least this many block rows for the reference model (``Settings.block_rows``), at
+        most what a replicate's lines allow (``2 * BOOTSTRAP_LINE_FRACTION * N nu >= q (nu
+        + ny)``).
 
     Raises
     ------
@@ -679,11 +685,14 @@ def select_orders(
     n_ref = excessive_order(n0, cap, factor)
     n0 = min(n0, n_ref)
     q = subspace.block_rows(n_ref, ny)
+    # a replicate's lines bound the block rows asked for beyond the default (order_limit's
+    # budget)
+    rows = int(2.0 * BOOTSTRAP_LINE_FRACTION * N * nu) // (ny + nu)
     if rank is not None and rank < ny:
-        # outputs with fewer independent directions than sensors need more block rows,
-        # as many as the replicates' lines allow (order_limit's budget)
-        rows = int(2.0 * BOOTSTRAP_LINE_FRACTION * N * nu) // (ny + nu)
+        # outputs with fewer independent directions than sensors need more block rows
         q = max(q, min(subspace.reference_block_rows(n_ref, ny, rank), rows))
+    if min_block_rows is not None:
+        q = max(q, min(int(min_block_rows), rows))
     return OrderChoice(scanned=orders, misfit=misfit, n0=n0, reference=n_ref, limit=n_limit,
                        chi2=chi2, rule=rule, models=models, block_rows=q, complete=complete)
 

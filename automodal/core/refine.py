@@ -945,7 +945,10 @@ def residue_shapes(
     whiten = np.exp(-0.5 * a)[:, None] * np.exp(-0.5 * b)[None, :]
     Rw = R * whiten[None]
     shapes = np.full((ny, m), np.nan, dtype=complex)
-    sigma = np.sqrt(np.asarray(residue_variance, float))
+    rv = np.asarray(residue_variance, float)
+    # a negative variance (the rounding of a near-singular pseudo-inverse's diagonal) is
+    # no variance: that residue's shape is left unknown, as for a NaN
+    sigma = np.sqrt(np.where(rv >= 0, rv, np.nan))
     ok = np.all(np.isfinite(Rw), axis=(1, 2)) & np.isfinite(sigma)
     if not ok.any():
         return shapes
