@@ -376,8 +376,10 @@ def input_stage(
     tell(first_pass, "spectra")
     first = as_frfdata(data, nperseg=m0)
     with threadpool_limits(1):
+        # the first pass only finds the modes (its warnings are not kept): the automatic
+        # block rows serve it, whatever block_rows the analysis asks for
         first_result = _identify(first, replace(s, n_bootstrap=min(
-            s.n_bootstrap, FIRST_PASS_REPLICATES)), first_pass)
+            s.n_bootstrap, FIRST_PASS_REPLICATES), block_rows=None), first_pass)
     phys = [m for m in first_result.modes if m.physical and np.isfinite(m.frequency_hz)]
     f = np.array([m.frequency_hz for m in phys], dtype=float)
     z = np.array([m.damping_ratio for m in phys], dtype=float)

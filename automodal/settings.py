@@ -103,15 +103,17 @@ class Settings:
         hammer hits (10 000 lines, one output) took 114 s as one model of 256 states.
     block_rows : int or None
         At least this many block rows ``q`` in the reference model and its bootstrap
-        replicates (in every sub-band), at least :data:`MIN_BLOCK_ROWS`; at most what a
-        replicate's lines allow (``2 * 0.6 N nu >= q (nu + ny)``; the report warns when
-        that cuts it). ``None`` (default): ``ceil(1.2 n / r) + 1`` for a reference of ``n``
-        states whose outputs show ``r`` directions above the noise. Many sensors on close
-        modes need more: on an 8 x 10 grid seen by 40 sensors (80 modes, 1 % noise) the
-        sub-bands' references found 5 of 36 and 13 of 27 of their modes with the default
-        ``q = 9`` and 34 and 27 with ``q = 18`` and 14 (``benchmarks/results_sub_band_rows.md``).
-        More rows cost time (a replicate's work grows as ``q^2``, its eigenvalues as
-        ``q^3``) and make the split into sub-bands finer.
+        replicates (in every sub-band; not in the first pass of output-only data, which
+        only finds the modes), at least :data:`MIN_BLOCK_ROWS`; at most what a
+        replicate's lines allow (``2 * BOOTSTRAP_LINE_FRACTION * N nu >= q (nu + ny)``,
+        :mod:`automodal.core.order`; the report warns when that cuts it). ``None``
+        (default): ``ceil(1.2 n / r) + 1`` for a reference of ``n`` states whose outputs
+        show ``r`` directions above the noise. Many sensors on close modes need more: on
+        an 8 x 10 grid seen by 40 sensors (80 modes, 1 % noise) the sub-bands' references
+        found 5 of 36 and 13 of 27 of their modes with the default ``q = 9`` and 34 and 27
+        with ``q = 18`` and 14 (``benchmarks/results_sub_band_rows.md``). More rows cost
+        time (a replicate's work grows as ``q^2``, its eigenvalues as ``q^3``) and make the
+        split into sub-bands finer.
     """
 
     band_hz: tuple[float, float] | None = None
@@ -153,6 +155,9 @@ class Settings:
         ):
             raise _refuse("block_rows", self.block_rows,
                           f"None (automatic) or an integer >= {MIN_BLOCK_ROWS}")
+        for name in ("max_order", "block_rows"):  # plain ints (numpy's do not go to JSON)
+            if getattr(self, name) is not None:
+                object.__setattr__(self, name, int(getattr(self, name)))
         if not isinstance(self.sub_bands, bool):
             raise _refuse("sub_bands", self.sub_bands, "True or False")
         if not (isinstance(self.resample, str) and self.resample in RESAMPLE_CHOICES):

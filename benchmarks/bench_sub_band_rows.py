@@ -20,7 +20,6 @@ Parts:
    - ``scan where r < ny``: the same, only where the outputs show fewer directions than
      sensors;
    - ``rank``: ``q r >= 3 n_ref``.
-
    - ``block_rows=Q``: the package's ``Settings(block_rows=Q)`` (``--block-rows Q``),
      for each ``Q`` of ``--block-rows``.
 
@@ -29,8 +28,10 @@ Parts:
 2. **One reference per sub-band** (the default run's noise-weighted sub-bands): the
    reference model alone (``reference.build_reference``) at the default ``q`` and at larger
    ones: true modes of the analysed band whose closest candidate is within 1e-3 in
-   frequency and 10 % in damping, median errors, and the dispersion (whitened residual of
-   the reference's modal model over its degrees of freedom), which the pipeline uses.
+   frequency and 10 % in damping (the closest pole of each true mode: two close modes may
+   share one, so the count is an upper bound), median errors, and the dispersion
+   (whitened residual of the reference's modal model over its degrees of freedom), which
+   the pipeline uses.
 
 Run ``python benchmarks/bench_sub_band_rows.py --help`` for the options.
 """
@@ -181,7 +182,8 @@ def render(meta: dict, runs: list[dict], refs: list[dict]) -> str:
         out.append(f"* {r['rule']}: {text}")
     out += ["", "## The reference alone in the default run's noise-weighted sub-bands", "",
             f"True modes of the analysed band whose closest candidate pole is within"
-            f" {FREQ_TOL:g} (relative frequency) and {100 * DAMP_TOL:g} % (relative damping).",
+            f" {FREQ_TOL:g} (relative frequency) and {100 * DAMP_TOL:g} % (relative damping);"
+            " two close modes may share a pole, so the count is an upper bound.",
             "", "| band Hz | outputs | reference order | q | q ny / n | true modes right |"
             " median error f | median error zeta | dispersion | s |",
             "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]

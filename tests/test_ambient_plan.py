@@ -153,3 +153,22 @@ def test_input_stage_passes_frfs_and_forced_records_through():
     data = input_stage(ts)
     assert data.attributes["analysis"] == "h1" and "plan" not in data.attributes["time_analysis"]
     assert input_stage(data) is data
+
+
+def test_the_first_pass_keeps_the_automatic_block_rows(monkeypatch):
+    """The first pass only finds the modes: ``block_rows`` asked for the analysis (its
+    warnings would be lost there) does not slow it."""
+    import automodal.pipeline as pipeline
+
+    seen = []
+    real = pipeline._identify
+
+    def spy(data, s, *args, **kwargs):
+        seen.append(s.block_rows)
+        return real(data, s, *args, **kwargs)
+
+    monkeypatch.setattr(pipeline, "_identify", spy)
+    rng = np.random.default_rng(4)
+    ts = TimeSeries(outputs=rng.standard_normal((20000, 3)), inputs=None, sample_rate=100.0)
+    input_stage(ts, Settings(seed=0, n_bootstrap=10, jobs=1, block_rows=12))
+    assert seen and seen[0] is None

@@ -4,6 +4,7 @@ numbers, warnings, monitoring options, output folders, and a lean ``identify``."
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -203,11 +204,27 @@ def test_block_rows_are_raised_on_request_and_said_when_the_lines_cut_them(tmp_p
     assert raised.exit_code == 0
     report = json.loads(raised.stdout)
     assert report["settings"]["block_rows"] == 30
+    assert report["settings"]["orders"]["block_rows"] == 30  # what the reference used
     assert report["summary"]["n_physical"] == 6
     assert not [w for w in report["warnings"] if "block rows" in w]
-    cut = cli("identify", SAMPLE, "--block-rows", "5000", "--json", *FAST)
-    said = [w for w in json.loads(cut.stdout)["warnings"] if "block rows 5000" in w]
-    assert said and all("allow a bootstrap replicate at most" in w for w in said)
+    cut = json.loads(cli("identify", SAMPLE, "--block-rows", "5000", "--json", *FAST).stdout)
+    said = [w for w in cut["warnings"] if "block rows 5000" in w]
+    assert said
+
+    def used(orders: dict) -> list[int]:  # the block rows of every (sub-)band's reference
+        parts = orders.get("sub_bands")
+        return sorted(sum((used(p) for p in parts), [])) if parts else [orders["block_rows"]]
+
+    from automodal.core.order import BOOTSTRAP_LINE_FRACTION
+    from automodal.io.frf_file import read_frf
+
+    _, ny, nu = read_frf(SAMPLE).frf.shape
+    for w in said:  # each band's cut is its replicates' line budget, and is what it used
+        lines = int(re.search(r"the (\d+) lines", w).group(1))
+        a, b = re.search(r"at most (\d+): (\d+) used", w).groups()
+        assert int(a) == int(b) == int(2 * BOOTSTRAP_LINE_FRACTION * lines * nu) // (ny + nu)
+    assert sorted(int(re.search(r"(\d+) used", w).group(1)) for w in said) == used(
+        cut["settings"]["orders"])
     never = tmp_path / "never.json"
     low = cli("identify", SAMPLE, "--block-rows", "1", "-o", never, *FAST)
     assert low.exit_code == 2 and "--block-rows" in low.stderr

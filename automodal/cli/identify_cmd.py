@@ -162,9 +162,10 @@ def _run_batch(input_path: str, outputs: tuple[str, ...], settings: Settings,
               "finds at most 6 modes (default: automatic; a warning says when the order "
               "stopped the model short of the data).")
 @click.option("--block-rows", type=click.IntRange(2, 10000), default=None, metavar="Q",
-              help="At least Q block rows in the reference model and its replicates "
-              "(default: automatic, about 1.2 states per output direction). Many sensors on "
-              "close modes need more (docs/method.md 1, 'Known limit'); slower.")
+              help="At least Q block rows (2-10000) in the reference model and its "
+              "replicates (default: automatic, ceil(1.2 n / r) + 1 for n states and r output "
+              "directions above the noise). Many sensors on close modes need more "
+              "(docs/method.md 1, 'Known limit'); slower.")
 @click.option("--one-band", is_flag=True,
               help="Identify the band with one model even when it is costly (by default a "
               "band whose one model would be slow is split into sub-bands at the valleys "
