@@ -13,15 +13,19 @@ Parts:
    1 % noise file: true modes found within 1e-6, 1e-3 and 1e-2 (relative frequency),
    median error, and the n-th singular value of the projected data.
 2. **Replicate Gram sums at a large q**: the orthonormal row basis (the one ``row_basis``
-   chooses there) makes every Gram block a sum over ``q^2`` basis products instead of the
-   ``2 q - 1`` power sums of the monomial basis. Alternative measured here: the monomial
-   power sums turned into the orthonormal basis by the congruence with the basis'
-   monomial coefficients (``P = C W``, so ``G_orth = C G_mono C^T`` block by block); its
-   rounding error grows like ``eps cond(monomial Gram)``.
-3. ``--pipeline`` (slow, about 7 minutes): ``pipeline.identify`` with the block rows of
-   the reference model and replicates raised to at least ``Q`` (``block_rows`` patched
-   for the run): modes found, spurious physical rows, wall time; the largest ``Q`` once
-   more with the replicates' sums by the congruence (``gram_sums`` patched too).
+   chooses there) would make every Gram block a sum over ``q^2`` basis products instead of
+   the ``2 q - 1`` power sums of the monomial basis; the package forms them in its product
+   basis (``gram_sums``, kind ``"product"``, ``2 q - 1`` functions). Alternative measured
+   here, from before the product basis: the monomial power sums turned into the
+   orthonormal basis by the congruence with the basis' monomial coefficients (``P = C W``,
+   so ``G_orth = C G_mono C^T`` block by block); its rounding error grows like
+   ``eps cond(monomial Gram)``.
+3. ``--pipeline`` (slow, about 3 minutes): ``pipeline.identify`` by default and with
+   ``Settings.block_rows`` at each ``Q`` of ``PIPELINE_Q`` (at least ``Q`` block rows in
+   every (sub-)band's reference and replicates): modes found, spurious physical rows,
+   (sub-)bands, wall time. (Before ``Settings.block_rows`` and the product basis, this
+   part patched ``block_rows`` and ran the largest ``Q`` once more with the congruence
+   sums; part 2 keeps that comparison for one identification.)
 
 Run ``python benchmarks/bench_block_rows.py --help`` for the options.
 """
@@ -35,7 +39,6 @@ import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from unittest import mock
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
@@ -61,7 +64,6 @@ ORDERS = (160, 228)
 BLOCK_ROWS = (8, 12, 16, 20, 28)
 GRAM_Q = 19  # q ny >= 3 n at the reference order 228 (the scan's rule, scan_block_rows)
 PIPELINE_Q = (8, 13, 19)
-DEFAULT_GRAM_SUMS = subspace.gram_sums
 
 
 def simulate(workdir: Path, noise: float) -> tuple[Path, np.ndarray]:
@@ -141,20 +143,6 @@ class CongruenceSums(subspace.GramSums):
         return tu, _congruence(self.C, gyu), _congruence(self.C, gyy)
 
 
-def congruence_gram_sums(z: np.ndarray):
-    """A ``subspace.gram_sums`` for data points ``z`` that computes non-monomial bases as
-    monomial power sums and a congruence (monomial bases as before)."""
-
-    def gram_sums(basis: subspace.RowBasis, H: np.ndarray, weights=None, **kw):
-        if basis.monomial:
-            return DEFAULT_GRAM_SUMS(basis, H, weights, **kw)
-        s = DEFAULT_GRAM_SUMS(subspace.monomial_basis(z, basis.q), H, weights, **kw)
-        return CongruenceSums(uu=s.uu, yu=s.yu, yy=s.yy, q=s.q, kind="toeplitz",
-                              C=monomial_coefficients(basis))
-
-    return gram_sums
-
-
 def gram_routes(path: Path, true: np.ndarray) -> dict:
     prep = pipeline.prepare(read_frf(str(path)), Settings(), [])
     q, ny = GRAM_Q, prep.Hs.shape[1]
@@ -167,44 +155,53 @@ def gram_routes(path: Path, true: np.ndarray) -> dict:
     t0 = time.perf_counter()
     s_mono = subspace.gram_sums(mono, prep.Hs, prep.line_weights)
     t_mono = time.perf_counter() - t0
+    direct = subspace.orthonormal_basis(prep.z, q)
+    direct.__dict__["products"] = None  # the q^2 basis products per line (sums_kind "direct")
+    t0 = time.perf_counter()
+    s_direct = subspace.gram_sums(direct, prep.Hs, prep.line_weights)
+    t_direct = time.perf_counter() - t0
     S_orth = subspace.schur_complement(s_orth)
     S_cong = subspace.schur_complement(CongruenceSums(
         uu=s_mono.uu, yu=s_mono.yu, yy=s_mono.yy, q=q, kind="toeplitz", C=C))
+    S_direct = subspace.schur_complement(s_direct)
+    S_data = subspace.schur_from_data(orth, prep.Hs, prep.line_weights)
+    scale = np.abs(S_data).max()
     out = {"q": q, "cond": subspace._monomial_gram_cond(prep.z, q), "t_orth": t_orth,
+           "kind": s_orth.kind, "t_direct": t_direct,
            "t_mono": t_mono, "rel": float(np.abs(S_cong - S_orth).max() / np.abs(S_orth).max())}
-    for name, S in (("orth", S_orth), ("cong", S_cong)):
+    for name, S in (("orth", S_orth), ("direct", S_direct), ("cong", S_cong)):
         O, _ = subspace.observability_from_schur(S, ORDERS[1])
         A, Cd = subspace.shift_invariance(O, ny, orth)
         err = errors(in_band_poles(A, Cd, prep), true)
         out[name] = {"e6": int(np.sum(err < 1e-6)), "e3": int(np.sum(err < 1e-3)),
-                     "median": float(np.median(err))}
+                     "median": float(np.median(err)),
+                     "data": float(np.abs(S - S_data).max() / scale)}
     return out
+
+
+def leaf_orders(orders: dict) -> list[dict]:
+    """The orders of every band identified as one model (the sub-bands of a split band,
+    and theirs when split again)."""
+    parts = orders.get("sub_bands")
+    return [o for p in parts for o in leaf_orders(p)] if parts else [orders]
 
 
 def pipeline_runs(path: Path, true: np.ndarray) -> list[dict]:
     data = read_frf(str(path))
-    z = pipeline.prepare(data, Settings(), []).z  # the points the pipeline maps to
-    default = subspace.block_rows
     rows = []
-    runs = [(Q, False) for Q in PIPELINE_Q] + [(PIPELINE_Q[-1], True)]
-    for Q, congruence in runs:
-        def raised(n: int, ny: int, Q: int = Q) -> int:
-            return default(n, ny) if ny <= 1 else max(default(n, ny), Q)
-
-        sums = congruence_gram_sums(z) if congruence else DEFAULT_GRAM_SUMS
-        with mock.patch.object(subspace, "block_rows", raised), \
-                mock.patch.object(subspace, "gram_sums", sums):
-            t0 = time.perf_counter()
-            res = pipeline.identify(data, Settings(seed=0))
-            dt = time.perf_counter() - t0
+    for Q in (None, *PIPELINE_Q):
+        t0 = time.perf_counter()
+        res = pipeline.identify(data, Settings(seed=0, block_rows=Q))
+        dt = time.perf_counter() - t0
+        leaves = leaf_orders(res.orders)
         phys = [m.frequency_hz for m in res.modes if m.physical]
         found, extra = match_modes(phys, list(true))
-        rows.append({"Q": Q, "q": res.orders["block_rows"],
-                     "basis": res.orders["basis"] + (" (congruence sums)" if congruence else ""),
-                     "n0": res.orders["n0"], "n_ref": res.orders["reference"],
+        rows.append({"Q": "default" if Q is None else Q,
+                     "q": ", ".join(str(o["block_rows"]) for o in leaves),
+                     "bands": len(leaves), "n_ref": max(o["reference"] for o in leaves),
                      "physical": len(phys), "found": found, "extra": extra, "time": dt})
-        print(f"  pipeline q>={Q} congruence={congruence}: {found} found, {extra} extra,"
-              f" {dt:.1f} s", file=sys.stderr)
+        print(f"  pipeline block_rows={Q}: {found} found, {extra} extra, {dt:.1f} s",
+              file=sys.stderr)
     return rows
 
 
@@ -221,25 +218,33 @@ def render(meta: dict, fits: dict, gram: dict, pipe: list[dict] | None) -> str:
     out += ["", f"## Replicate Gram sums at q = {gram['q']} (1 % noise, full data, order"
             f" {ORDERS[1]})", "",
             f"Monomial Gram condition number {gram['cond']:.1e}.", "",
-            "| route | Gram sums s | true modes within 1e-6 / 1e-3 | median error |",
-            "|---|---:|---|---:|",
-            f"| orthonormal basis, q^2 products per line | {gram['t_orth']:.2f} |"
-            f" {gram['orth']['e6']} / {gram['orth']['e3']} | {gram['orth']['median']:.1e} |",
+            "| route | Gram sums s | true modes within 1e-6 / 1e-3 | median error |"
+            " Schur complement's largest difference from the data matrix's |",
+            "|---|---:|---|---:|---:|",
+            f"| orthonormal basis, the package's sums ({gram['kind']}) | {gram['t_orth']:.2f} |"
+            f" {gram['orth']['e6']} / {gram['orth']['e3']} | {gram['orth']['median']:.1e} |"
+            f" {gram['orth']['data']:.1e} |",
+            f"| orthonormal basis, q^2 products per line (direct) | {gram['t_direct']:.2f} |"
+            f" {gram['direct']['e6']} / {gram['direct']['e3']} |"
+            f" {gram['direct']['median']:.1e} | {gram['direct']['data']:.1e} |",
             f"| monomial power sums + congruence | {gram['t_mono']:.2f} |"
-            f" {gram['cong']['e6']} / {gram['cong']['e3']} | {gram['cong']['median']:.1e} |",
-            "", f"Largest difference of the two Schur complements: {gram['rel']:.1e} of its"
-            " largest entry."]
+            f" {gram['cong']['e6']} / {gram['cong']['e3']} | {gram['cong']['median']:.1e} |"
+            f" {gram['cong']['data']:.1e} |",
+            "", f"Largest difference of the first and last Schur complements: {gram['rel']:.1e}"
+            " of its largest entry (differences: of the largest entry of the data matrix's)."]
     if gram.get("noise_free"):
         nf = gram["noise_free"]
-        out += ["", f"Noise-free file, same order: orthonormal route {nf['orth']['e6']} modes"
-                f" within 1e-6, congruence {nf['cong']['e6']} (difference {nf['rel']:.1e})."]
+        out += ["", f"Noise-free file, same order: modes within 1e-6 by the package's sums"
+                f" {nf['orth']['e6']} (difference from the data matrix's {nf['orth']['data']:.1e}),"
+                f" the q^2 products {nf['direct']['e6']} ({nf['direct']['data']:.1e}), the"
+                f" congruence {nf['cong']['e6']} ({nf['cong']['data']:.1e})."]
     if pipe:
-        out += ["", "## Pipeline with the block rows raised (1 % noise)", "",
-                "| q at least | q | row basis | n0 | reference order | physical rows |"
-                " true modes found (of 80) | physical rows matching no true mode | wall s |",
-                "|---:|---:|---|---:|---:|---:|---:|---:|---:|"]
+        out += ["", "## Pipeline with the block rows raised (1 % noise, `Settings.block_rows`)",
+                "", "| block_rows | q of each (sub-)band | (sub-)bands | largest reference order |"
+                " physical rows | true modes found (of 80) | physical rows matching no true"
+                " mode | wall s |", "|---|---|---:|---:|---:|---:|---:|---:|"]
         for r in pipe:
-            out.append(f"| {r['Q']} | {r['q']} | {r['basis']} | {r['n0']} | {r['n_ref']} |"
+            out.append(f"| {r['Q']} | {r['q']} | {r['bands']} | {r['n_ref']} |"
                        f" {r['physical']} | {r['found']} | {r['extra']} | {r['time']:.1f} |")
     return "\n".join(out) + "\n"
 
@@ -259,7 +264,8 @@ def main(argv: list[str] | None = None) -> int:
         fits = {f"{noise:g}": single_fits(*files[noise]) for noise in files}
         gram = gram_routes(*files[0.01])
         nf = gram_routes(*files[0.0])
-        gram["noise_free"] = {"orth": nf["orth"], "cong": nf["cong"], "rel": nf["rel"]}
+        gram["noise_free"] = {"orth": nf["orth"], "direct": nf["direct"], "cong": nf["cong"],
+                              "rel": nf["rel"]}
         pipe = pipeline_runs(*files[0.01]) if args.pipeline else None
     meta["load average at end"] = load_average()
     text = render(meta, fits, gram, pipe)
