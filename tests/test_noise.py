@@ -308,3 +308,18 @@ def test_averages_from_attributes() -> None:
     assert noise.averages_from_attributes({"averages": np.array([16])}) == 16.0
     assert noise.averages_from_attributes({"operator": "x"}) is None
     assert noise.averages_from_attributes({"n_averages": "many"}) is None
+
+
+def test_a_line_far_above_the_others_gives_no_overflow_warning() -> None:
+    """A line ``1e170`` times the median power (drawn by the readers' property tests): its
+    weight underflows to zero, silently, and the fit stays finite."""
+    import warnings
+
+    rng = np.random.default_rng(0)
+    h = rng.uniform(0.5, 2.0, 200)
+    h[50] = 1e170
+    v = (1.0 + 0.5 * h) * rng.chisquare(8, 200) / 8
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        a, b = noise._fit_one(v, h, 2.0, 0.98, 30)
+    assert np.isfinite(a) and np.isfinite(b) and a >= 0 and b >= 0
