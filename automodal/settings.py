@@ -105,10 +105,9 @@ class Settings:
         At least this many block rows ``q`` in the reference model and its bootstrap
         replicates (in every sub-band; not in the first pass of output-only data, which
         only finds the modes), at least :data:`MIN_BLOCK_ROWS`; at most what a
-        replicate's lines allow (``2 * BOOTSTRAP_LINE_FRACTION * N nu >= q (nu + ny)``,
-        :mod:`automodal.core.order`; the report warns when that cuts it). ``None``
-        (default): ``ceil(1.2 n / r) + 1`` for a reference of ``n`` states whose outputs
-        show ``r`` directions above the noise. Many sensors on close modes need more: on
+        replicate's lines allow (:func:`automodal.core.order.block_row_budget`; the
+        report warns when that cuts it). ``None`` (default): ``ceil(1.2 n / r) + 1`` for
+        a reference of ``n`` states whose outputs show ``r`` directions above the noise. Many sensors on close modes need more: on
         an 8 x 10 grid seen by 40 sensors (80 modes, 1 % noise) the sub-bands' references
         found 5 of 36 and 13 of 27 of their modes with the default ``q = 9`` and 34 and 27
         with ``q = 18`` and 14 (``benchmarks/results_sub_band_rows.md``). More rows cost

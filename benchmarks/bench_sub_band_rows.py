@@ -82,7 +82,7 @@ def raised_rows(rule: str, choice: order.OrderChoice, H: np.ndarray,
     """The reference's block rows under ``rule``, at most the replicates' line budget."""
     N, ny, nu = H.shape
     q = choice.block_rows
-    rows = int(2.0 * order.BOOTSTRAP_LINE_FRACTION * N * nu) // (ny + nu)
+    rows = order.block_row_budget(N, ny, nu)
     n = choice.reference
     if rule == "scan" or (rule == "scan where r < ny" and rank is not None and rank < ny):
         q = max(q, min(subspace.scan_block_rows(n, ny), rows))
@@ -135,7 +135,7 @@ def reference_rows(data, parts: list[dict], truth: dict) -> list[dict]:
             continue
         prep = pipeline.prepare(data, Settings(band_hz=tuple(p["band"])), [])
         N, ny, nu = prep.Hs.shape
-        budget = int(2.0 * order.BOOTSTRAP_LINE_FRACTION * N * nu) // (ny + nu)
+        budget = order.block_row_budget(N, ny, nu)
         inside = (f_true > p["band"][0]) & (f_true < p["band"][1])
         for factor in Q_FACTORS:
             q = min(int(round(factor * p["q"])), budget)

@@ -330,15 +330,21 @@ def plateaued(orders: np.ndarray, misfit, patience: int = 24) -> bool:
 # ---------------------------------------------------------------------------------------
 
 
+def block_row_budget(n_lines: int, ny: int, nu: int) -> int:
+    """Most block rows a frequency-line replicate's lines allow: ``q (nu + ny) <= 2 *
+    BOOTSTRAP_LINE_FRACTION * n_lines * nu`` (the projection needs at least as many real
+    columns as rows)."""
+    return int(2.0 * BOOTSTRAP_LINE_FRACTION * n_lines * nu) // (ny + nu)
+
+
 def order_limit(n_lines: int, ny: int, nu: int) -> int:
     """Largest even order the data allow, bootstrap replicates included (0 if none)."""
-    budget = 2.0 * BOOTSTRAP_LINE_FRACTION * n_lines * nu
+    rows = block_row_budget(n_lines, ny, nu)
     n = 2
     while True:
         nxt = n + 2
-        q = subspace.block_rows(nxt, ny)
-        if q * (nu + ny) > budget or nxt > 2000:
-            return n if subspace.block_rows(n, ny) * (nu + ny) <= budget else 0
+        if subspace.block_rows(nxt, ny) > rows or nxt > 2000:
+            return n if subspace.block_rows(n, ny) <= rows else 0
         n = nxt
 
 
@@ -631,8 +637,7 @@ def select_orders(
         Worker threads of the scan (:func:`misfit_scan`).
     min_block_rows : int, optional
         At least this many block rows for the reference model (``Settings.block_rows``), at
-        most what a replicate's lines allow (``2 * BOOTSTRAP_LINE_FRACTION * N nu >= q (nu
-        + ny)``).
+        most what a replicate's lines allow (:func:`block_row_budget`).
 
     Raises
     ------
@@ -685,9 +690,8 @@ def select_orders(
     n_ref = excessive_order(n0, cap, factor)
     n0 = min(n0, n_ref)
     q = subspace.block_rows(n_ref, ny)
-    # a replicate's lines bound the block rows asked for beyond the default (order_limit's
-    # budget)
-    rows = int(2.0 * BOOTSTRAP_LINE_FRACTION * N * nu) // (ny + nu)
+    # a replicate's lines bound the block rows asked for beyond the default
+    rows = block_row_budget(N, ny, nu)
     if rank is not None and rank < ny:
         # outputs with fewer independent directions than sensors need more block rows
         q = max(q, min(subspace.reference_block_rows(n_ref, ny, rank), rows))
