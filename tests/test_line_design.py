@@ -19,7 +19,7 @@ from automodal.core.line_design import (
     half_power_counts,
     mapped_angle,
 )
-from automodal.pipeline import local_spacing
+from automodal.core.summary import local_spacing
 
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_data"
 

@@ -470,3 +470,87 @@ def test_weighted_information_is_the_sum_over_entries_it_defines(nuisance):
     got = _weighted_information(PD, Cx, ratio, k, T)
     np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-12 * np.abs(want).max())
     np.testing.assert_array_equal(_weighted_information(PD, Cx, ratio, k, T, jobs=2), got)
+
+
+def test_a_needed_companion_the_lines_do_not_resolve_is_not_promoted():
+    """The near-coincident pair that two inputs promote (above), its second pole's
+    half-power bandwidth (0.1 Hz) now under 1.47 line spacings: the likelihood-ratio test
+    cannot vouch for a pole the lines do not resolve."""
+    from automodal.core.summary import refine_physical_modes, resolved
+
+    omega, H, variance, lam = _two_modes_two_inputs(2)
+    keep = slice(None, None, 15)  # 0.075 Hz between lines
+    assert not resolved(10.05, 0.005, omega[keep] / (2 * np.pi))
+    start = lam * (1 + 2e-4)
+    states = np.concatenate([start, start.conj()])
+    modes = [_mode(0, True, 10.0), _mode(1, False, 10.05)]
+    out = refine_physical_modes(modes, states, np.array([0, 1]), omega[keep], H[keep],
+                                variance[keep])
+    assert not [m for m in out if m.reference_mode == 1][0].physical
+
+
+def test_an_unrefined_physical_mode_the_lines_do_not_resolve_is_not_physical():
+    """A physical mode the refinement did not hold (here: none of its own, reference mode
+    -1) stays physical where the lines resolve its damping, and is not physical where they
+    do not (a half-power bandwidth of 0.002 lines)."""
+    from dataclasses import replace
+
+    from automodal.core.summary import refine_physical_modes
+
+    omega, H, variance, lam = _two_modes_two_inputs(2)
+    states = np.concatenate([lam, lam.conj()])
+    wide = replace(_mode(-1, True, 11.0), damping_ratio=0.005)
+    narrow = replace(_mode(-1, True, 11.5), damping_ratio=1e-6)
+    modes = [_mode(0, True, 10.0), _mode(1, True, 10.05), wide, narrow]
+    out = {m.frequency_hz: m for m in refine_physical_modes(
+        modes, states, np.array([0, 1]), omega, H, variance)}
+    assert out[11.0].physical and out[11.0].estimator == "bootstrap"
+    assert not out[11.5].physical and out[11.5].physicalness == 0.0
+    assert sum(m.physical for m in out.values()) == 3
+
+
+def test_resolved_is_a_bandwidth_of_one_and_a_half_lines_with_the_window():
+    from automodal.core.summary import resolved
+
+    lines = np.arange(0.0, 40.0, 0.1)
+    bandwidth = 1.47 * 0.1  # 2 zeta f
+    assert resolved(10.0, 1.01 * bandwidth / 20.0, lines)
+    assert not resolved(10.0, 0.99 * bandwidth / 20.0, lines)
+    # an exponential window's decay widens the peak the data show
+    assert resolved(10.0, 0.5 * bandwidth / 20.0, lines, window_decay=np.pi * bandwidth)
+    assert not resolved(10.0, np.nan, lines) and not resolved(10.0, 0.01, lines[:1])
+
+
+def test_one_mode_per_line_keeps_the_strongest_of_modes_closer_than_a_line():
+    """With one input or output, two physical modes closer than the line spacing are one:
+    the one with the larger SNR stays; modes a line or more apart, and modes that are not
+    physical, are left alone."""
+    from dataclasses import replace
+
+    from automodal.core.physicalness import SNR_FEATURE_NAME
+    from automodal.core.summary import one_mode_per_line
+
+    lines = np.arange(0.0, 40.0, 0.02)
+
+    def mode(f: float, snr: float, physical: bool = True):
+        return replace(_mode(-1, physical, f), features={SNR_FEATURE_NAME: snr})
+
+    modes = [mode(10.0, 3.0), mode(10.015, 4.0), mode(10.04, 2.0), mode(10.05, 9.0, False)]
+    out = one_mode_per_line(modes, lines)
+    assert [m.physical for m in out] == [False, True, True, False]
+    assert out[0].physicalness == 0.0 and out[3].physicalness == modes[3].physicalness
+
+
+def test_a_single_input_reports_one_mode_where_two_poles_share_a_line():
+    """Through the refinement: the two-mode fixture's modes 0.05 Hz apart (ten lines) stay
+    two with one input; the same poles 0.002 Hz apart (under a line) leave one physical."""
+    from automodal.core.summary import refine_physical_modes
+
+    omega, H, variance, lam = _two_modes_two_inputs(1)
+    states = np.concatenate([lam, lam.conj()])
+    modes = [_mode(0, True, 10.0), _mode(1, True, 10.05)]
+    out = refine_physical_modes(modes, states, np.array([0, 1]), omega, H, variance)
+    assert sum(m.physical for m in out) == 2
+    close = [_mode(0, True, 10.0), _mode(-1, True, 10.002)]
+    out = refine_physical_modes(close, states, np.array([0, 1]), omega, H, variance)
+    assert sum(m.physical for m in out) == 1
