@@ -516,12 +516,8 @@ def _identify(
         # comes from the noise and the lines rather than the modes (a 9-DOF chain over 51 201
         # lines: a 0.2 Hz sub-band with one mode still took 112 states), splitting again
         # only multiplies the scans
-        # planned on the rows the order needs: planned on the estimate's larger rows, dense
-        # bands were cut finer, and the poles refined beside the extra edges were
-        # companions 8-43 standard deviations off (seed 281 f_17: 28 of 34 intervals held
-        # the truth instead of 32)
         n_bands = sub_bands.sub_band_count(sub_bands.replicate_work(
-            *p.Hs.shape, choice.reference, choice.split_rows or choice.block_rows))
+            *p.Hs.shape, choice.reference, choice.block_rows))
     if n_bands > 1:
         plan = sub_bands.plan_sub_bands(
             p.frequency, p.Hs, n_bands, stabilization.stable_frequencies(

@@ -106,13 +106,14 @@ class Settings:
         replicates (in every sub-band; not in the first pass of output-only data, which
         only finds the modes), at least :data:`MIN_BLOCK_ROWS`; at most what a
         replicate's lines allow (:func:`automodal.core.order.block_row_budget`; the
-        report warns when that cuts it). ``None`` (default): the order scan's
-        ``ceil(3 n / ny) + 1`` for a reference of ``n`` states and ``ny`` outputs (``n + 1``
-        with one output), or ``ceil(1.2 n / r) + 1`` where the outputs show only ``r``
-        directions above the noise, whichever is larger
-        (:func:`automodal.core.order.select_orders`). More rows cost time (a replicate's
-        work grows as ``q^2``, its eigenvalues as ``q^3``); rows asked for here, unlike the
-        default's, also make the split into sub-bands finer.
+        report warns when that cuts it). ``None`` (default): ``ceil(1.2 n / r) + 1`` for
+        a reference of ``n`` states whose outputs show ``r`` directions above the noise.
+        Many sensors on close modes need more: on an 8 x 10 grid seen by 40 sensors (80
+        modes, 1 % noise) the sub-bands' references found 5 of 36 and 13 of 27 of their
+        modes with the default ``q = 9`` and 34 and 27 with ``q = 18`` and 14
+        (``benchmarks/results_sub_band_rows.md``). More rows cost time (a replicate's work
+        grows as ``q^2``, its eigenvalues as ``q^3``) and make the split into sub-bands
+        finer.
     """
 
     band_hz: tuple[float, float] | None = None

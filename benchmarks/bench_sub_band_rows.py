@@ -2,39 +2,36 @@
 
 Case b of ``bench_e2e.py`` (8 x 10 grid of masses, 80 modes, 40 outputs on half the grid,
 3 inputs, 3000 lines, 1 % proportional noise) is split into sub-bands. Each sub-band's
-reference model takes the order scan's ``q ny >= 3 n`` block rows
-(:func:`automodal.core.subspace.scan_block_rows`), while the split is planned on the
-order's own, ``q = ceil(1.2 n / r) + 1`` (``r`` the outputs' rank above the noise,
-:func:`automodal.core.subspace.reference_block_rows`; ``OrderChoice.split_rows``). This
-script measures what the reference's block rows do to the modes of those sub-bands; it
-changes nothing in the package.
+reference model takes ``q = ceil(1.2 n / r) + 1`` block rows (``r`` the outputs' rank above
+the noise, :func:`automodal.core.subspace.reference_block_rows`), while the order scan uses
+``q ny >= 3 n`` (:func:`automodal.core.subspace.scan_block_rows`). This script measures what
+the reference's block rows do to the modes of those sub-bands; it changes nothing in the
+package.
 
 Parts:
 
 1. **Rules**: ``pipeline.identify`` with the block rows of every (sub-)band's reference
-   set by a rule (``order.select_orders`` wrapped), at most what the replicates' lines
-   allow:
+   raised by a rule (``order.select_orders`` wrapped, so the split decision, which counts
+   the block rows in a replicate's work, sees them too), at most what the replicates'
+   lines allow:
 
    - ``default``: the package as it is;
-   - ``order's rows``: the order's own rows for the reference too (the default before
-     session 24);
-   and, the split decision counting the rows (``split_rows`` raised with them):
    - ``scan``: ``q ny >= 3 n_ref``, the scan's rule at the reference order;
    - ``scan where r < ny``: the same, only where the outputs show fewer directions than
      sensors;
-   - ``rank``: ``q r >= 3 n_ref``;
+   - ``rank``: ``q r >= 3 n_ref``.
    - ``block_rows=Q``: the package's ``Settings(block_rows=Q)`` (``--block-rows Q``),
      for each ``Q`` of ``--block-rows``.
 
    Physical rows, true modes found (one-to-one within 1 %), rows matching no true mode,
    sub-bands, wall time (all cores unless ``--jobs``).
-2. **One reference per sub-band** (the noise-weighted sub-bands of the ``order's rows``
-   run, which the default splits the same way): the reference model alone
-   (``reference.build_reference``) at the order's own ``q`` and at larger ones: true modes
-   of the analysed band whose closest candidate is within 1e-3 in frequency and 10 % in
-   damping (the closest pole of each true mode: two close modes may share one, so the
-   count is an upper bound), median errors, and the dispersion (whitened residual of the
-   reference's modal model over its degrees of freedom), which the pipeline uses.
+2. **One reference per sub-band** (the default run's noise-weighted sub-bands): the
+   reference model alone (``reference.build_reference``) at the default ``q`` and at larger
+   ones: true modes of the analysed band whose closest candidate is within 1e-3 in
+   frequency and 10 % in damping (the closest pole of each true mode: two close modes may
+   share one, so the count is an upper bound), median errors, and the dispersion
+   (whitened residual of the reference's modal model over its degrees of freedom), which
+   the pipeline uses.
 
 Run ``python benchmarks/bench_sub_band_rows.py --help`` for the options.
 """
@@ -68,7 +65,7 @@ from automodal.core import order, reference, subspace, whitening  # noqa: E402
 from automodal.io.frf_file import read_frf  # noqa: E402
 from automodal.settings import Settings  # noqa: E402
 
-RULES = ("default", "order's rows", "scan", "scan where r < ny", "rank")
+RULES = ("default", "scan", "scan where r < ny", "rank")
 Q_FACTORS = (1.0, 1.5, 2.0, 3.0)
 FREQ_TOL, DAMP_TOL = 1e-3, 0.1
 
@@ -80,15 +77,11 @@ def simulate(workdir: Path) -> tuple[Path, dict]:
     return path, json.loads(path.with_suffix(".modes.json").read_text())
 
 
-def rule_rows(rule: str, choice: order.OrderChoice, H: np.ndarray,
-              rank: int | None) -> tuple[int, int]:
-    """The reference's block rows and those the split is planned on under ``rule``, at
-    most the replicates' line budget."""
+def raised_rows(rule: str, choice: order.OrderChoice, H: np.ndarray,
+                rank: int | None) -> int:
+    """The reference's block rows under ``rule``, at most the replicates' line budget."""
     N, ny, nu = H.shape
-    if rule == "default":
-        return choice.block_rows, choice.split_rows
-    own = choice.split_rows or choice.block_rows
-    q = own
+    q = choice.block_rows
     rows = order.block_row_budget(N, ny, nu)
     n = choice.reference
     if rule == "scan" or (rule == "scan where r < ny" and rank is not None and rank < ny):
@@ -96,7 +89,7 @@ def rule_rows(rule: str, choice: order.OrderChoice, H: np.ndarray,
     elif rule == "rank":
         r = ny if rank is None else max(2, min(int(rank), ny))
         q = max(q, min(int(np.ceil(3.0 * n / r)) + 1, rows))
-    return q, q
+    return q
 
 
 def run_rule(data, rule: str, true_f: np.ndarray, jobs: int | None,
@@ -108,8 +101,7 @@ def run_rule(data, rule: str, true_f: np.ndarray, jobs: int | None,
 
     def selected(z, H, weights, *args, **kwargs):
         choice = select(z, H, weights, *args, **kwargs)
-        q, split = rule_rows(rule, choice, H, kwargs.get("rank"))
-        return replace(choice, block_rows=q, split_rows=split)
+        return replace(choice, block_rows=raised_rows(rule, choice, H, kwargs.get("rank")))
 
     def part(d, s, *args, **kwargs):
         res = identify_part(d, s, *args, **kwargs)
@@ -188,8 +180,7 @@ def render(meta: dict, runs: list[dict], refs: list[dict]) -> str:
         text = "; ".join(f"{p['band'][0]:.2f}-{p['band'][1]:.2f}: {p['n_ref']}, q {p['q']},"
                          f" {p['weighting']}" for p in r["parts"])
         out.append(f"* {r['rule']}: {text}")
-    out += ["", "## The reference alone in the noise-weighted sub-bands (the order's rows"
-            " times 1-3)", "",
+    out += ["", "## The reference alone in the default run's noise-weighted sub-bands", "",
             f"True modes of the analysed band whose closest candidate pole is within"
             f" {FREQ_TOL:g} (relative frequency) and {100 * DAMP_TOL:g} % (relative damping);"
             " two close modes may share a pole, so the count is an upper bound.",
@@ -225,10 +216,7 @@ def main(argv: list[str] | None = None) -> int:
         runs = [run_rule(data, rule, true_f, args.jobs) for rule in rules]
         runs += [run_rule(data, "default", true_f, args.jobs, int(q))
                  for q in args.block_rows.split(",") if q.strip()]
-        # the sub-bands of the order's rows (the default's split, planned on them), whose
-        # "q" is the order's own
-        base = next((r for r in runs if r["rule"] == "order's rows"),
-                    next((r for r in runs if r["rule"] == "default"), None))
+        base = next((r for r in runs if r["rule"] == "default"), None)  # the package's
         from threadpoolctl import threadpool_limits
 
         with threadpool_limits(1):

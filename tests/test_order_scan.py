@@ -128,17 +128,14 @@ def test_reference_block_rows_follow_the_outputs_rank():
 def test_block_rows_asked_for_are_a_floor_the_lines_cap():
     z, Hs, lw = _exact()
     N, ny, nu = Hs.shape
-    budget = int(2.0 * order.BOOTSTRAP_LINE_FRACTION * N * nu) // (ny + nu)
     auto = order.select_orders(z, Hs, lw)
-    # the estimate takes the scan's rows, the split is planned on the order's own
-    assert auto.block_rows == min(subspace.scan_block_rows(auto.reference, ny), budget)
-    assert auto.split_rows == subspace.block_rows(auto.reference, ny) < auto.block_rows
+    assert auto.block_rows == subspace.block_rows(auto.reference, ny)
     assert order.select_orders(z, Hs, lw, min_block_rows=2).block_rows == auto.block_rows
     raised = order.select_orders(z, Hs, lw, min_block_rows=auto.block_rows + 5)
-    assert raised.block_rows == raised.split_rows == auto.block_rows + 5
+    assert raised.block_rows == auto.block_rows + 5
     assert raised.n0 == auto.n0 and raised.reference == auto.reference
-    capped = order.select_orders(z, Hs, lw, min_block_rows=10 * N)
-    assert capped.block_rows == capped.split_rows == budget
+    budget = int(2.0 * order.BOOTSTRAP_LINE_FRACTION * N * nu) // (ny + nu)
+    assert order.select_orders(z, Hs, lw, min_block_rows=10 * N).block_rows == budget
 
 
 def test_order_off_the_noise_takes_the_floor_above_and_the_directions_below():

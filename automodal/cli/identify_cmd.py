@@ -163,8 +163,9 @@ def _run_batch(input_path: str, outputs: tuple[str, ...], settings: Settings,
               "stopped the model short of the data).")
 @click.option("--block-rows", type=click.IntRange(2, 10000), default=None, metavar="Q",
               help="At least Q block rows (2-10000) in the reference model and its "
-              "replicates (default: automatic, ceil(3 n / ny) + 1 for n states and ny "
-              "outputs, n + 1 with one output; docs/method.md 1); slower.")
+              "replicates (default: automatic, ceil(1.2 n / r) + 1 for n states and r output "
+              "directions above the noise). Many sensors on close modes need more "
+              "(docs/method.md 1, 'Known limit'); slower.")
 @click.option("--one-band", is_flag=True,
               help="Identify the band with one model even when it is costly (by default a "
               "band whose one model would be slow is split into sub-bands at the valleys "

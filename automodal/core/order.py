@@ -542,14 +542,10 @@ class OrderChoice:
         The discrete-time state and output matrices of every scanned order (of the scan
         that chose ``n0``), for the stabilization diagram.
     block_rows : int
-        Block rows of the reference model and its replicates: ``split_rows``, raised to
-        the scan's (:func:`automodal.core.subspace.scan_block_rows`, ``q ny >= 3 n``) as
-        far as a replicate's lines allow (:func:`block_row_budget`).
-    split_rows : int
-        Block rows the reference order itself needs, on which the band's split is planned
+        Block rows of the reference model
         (:func:`automodal.core.subspace.reference_block_rows` of the outputs' rank above
         the noise, when known; at least ``min_block_rows`` of :func:`select_orders` as far
-        as the lines allow); 0 when not known, then ``block_rows``.
+        as the lines allow).
     complete : bool
         Whether the scan ended where it would have without ``split_work``: its last
         stage's order was below the one that ends a scan early (``split_above`` of
@@ -565,7 +561,6 @@ class OrderChoice:
     rule: str = "floor"
     models: list[tuple[int, np.ndarray, np.ndarray]] = field(default_factory=list)
     block_rows: int = 0
-    split_rows: int = 0
     complete: bool = True
 
 
@@ -702,12 +697,8 @@ def select_orders(
         q = max(q, min(subspace.reference_block_rows(n_ref, ny, rank), rows))
     if min_block_rows is not None:
         q = max(q, min(int(min_block_rows), rows))
-    # the estimate takes the scan's rows, which resolve close modes that the order's own
-    # rows blur (docs/method.md 1)
-    accurate = max(q, min(subspace.scan_block_rows(n_ref, ny), rows))
     return OrderChoice(scanned=orders, misfit=misfit, n0=n0, reference=n_ref, limit=n_limit,
-                       chi2=chi2, rule=rule, models=models, block_rows=accurate, split_rows=q,
-                       complete=complete)
+                       chi2=chi2, rule=rule, models=models, block_rows=q, complete=complete)
 
 
 def order_off_the_noise(n0: int, floor: int, ny: int, rank: int | None) -> tuple[int, str]:

@@ -51,19 +51,14 @@ def block_rows(n: int, ny: int) -> int:
 
 
 def scan_block_rows(n: int, ny: int) -> int:
-    """Block rows for the order scan and the reference model: ``q ny >= 3 n`` with several
-    outputs.
+    """Block rows for the order scan: ``q ny >= 3 n`` with several outputs.
 
     The scan must resolve the true order, not an over-sized one: on a 40-output, 80-mode
     grid, noise-free data at order 160 were identified exactly with ``q = 14`` (``q ny = 3.5 n``)
-    but not with ``q = 6`` or ``9``, though ``(q - 1) ny >= n`` held. An over-sized order
-    does not make up for it (order 228, ``q = 8`` or ``12``: no mode within 1e-6
-    noise-free; ``benchmarks/bench_block_rows.py``), nor, with noise, does it for the
-    reference model: :func:`block_rows` of its order (``q ny`` about ``1.2 n``) left that
-    grid's 1 % noise test with 65 of its 80 modes and 8 false ones, these rows with 74 and 1;
-    on five family seeds they were not chosen on (459, 479, 481, 503, 507) they found 2865
-    of 2881 clear modes instead of 2846, with 8 false modes instead of 10
-    (``docs/method.md`` 1).
+    but not with ``q = 6`` or ``9``, though ``(q - 1) ny >= n`` held. The reference model
+    keeps :func:`block_rows`, and its excessive order does not make up for it on that grid
+    (order 228, ``q = 8`` or ``12``: no mode within 1e-6 noise-free; see the known limit in
+    ``docs/method.md`` and ``benchmarks/bench_block_rows.py``).
     """
     if ny <= 1:
         return int(n) + 1

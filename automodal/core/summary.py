@@ -327,12 +327,13 @@ def refine_physical_modes(
     A mode the lines do not resolve (:func:`resolved`) needs the likelihood's support: a
     companion so narrow is never promoted (the ratio's chi-square law needs a pole the lines
     resolve; narrower, it fits the noise of a line or two), and a physical mode so narrow
-    whose refinement failed, or that was not refined, is no longer physical (the frequency
-    lines' replicates share the data's one noise realization, so they agree on a pole fitted
-    to it as on a mode). Our test cases' 10-DOF chain (5 % noise) and repeated-pair grid had
-    such poles at 0.13-0.5 line spacings called physical once the reference took the scan's
-    block rows; the family's true modes under 1.47 lines (0.62-1.42 on seeds 503 and 507)
-    were all refined.
+    whose refinement failed, or that was not refined, is no longer physical (nothing in the
+    data then supports it; the frequency lines' replicates share the data's one noise
+    realization, so they agree on a pole fitted to it as on a mode). With the scan's block
+    rows for the reference (tried, ``docs/method.md`` 1) our test cases' 10-DOF chain (5 %
+    noise) and repeated-pair grid had such poles at 0.13-0.5 line spacings called physical;
+    the family's true modes under 1.47 lines (0.62-1.42 on seeds 503 and 507) were all
+    refined.
 
     With one input or one output, of physical modes closer than a line spacing only the
     strongest stays physical (:func:`one_mode_per_line`).
@@ -363,8 +364,13 @@ def refine_physical_modes(
     """
     counts = Counter(m.reference_mode for m in modes if m.physical and m.reference_mode >= 0)
     chosen = sorted(i for i, c in counts.items() if c == 1)
-    if not chosen:
-        return modes
+    lines_hz = omega / (2.0 * np.pi)
+    decay = 0.0 if pole_map is None else pole_map.shift
+    single = min(H.shape[1:]) == 1
+    if not chosen:  # nothing to refine: no mode has the likelihood's support
+        out = [replace(m, physical=False, physicalness=0.0) if m.physical and not resolved(
+            m.frequency_hz, m.damping_ratio, lines_hz, decay) else m for m in modes]
+        return numbered(one_mode_per_line(out, lines_hz) if single else out)
     chosen_states = oscillatory[np.array(chosen, dtype=int)]
     used = np.zeros(states.size, bool)
     used[chosen_states] = True
@@ -411,8 +417,6 @@ def refine_physical_modes(
         ref_mode = np.flatnonzero(oscillatory == kept[c])
         if ref_mode.size and owners[int(ref_mode[0])] == 1:
             slot[int(ref_mode[0])] = k + int(c)
-    lines_hz = omega / (2.0 * np.pi)
-    decay = 0.0 if pole_map is None else pole_map.shift
     out = []
     for m in modes:
         j = slot.get(m.reference_mode, -1)
@@ -439,7 +443,7 @@ def refine_physical_modes(
             damping_ci95=(float(z[j] - 1.96 * z_std[j]), float(z[j] + 1.96 * z_std[j])),
             **_fit_shape(m, shapes[:, j]), estimator="ml",
         ))
-    if min(H.shape[1:]) == 1:
+    if single:
         out = one_mode_per_line(out, lines_hz)
     return numbered(out)
 
@@ -453,7 +457,7 @@ def one_mode_per_line(modes: list[IdentifiedMode], lines_hz: np.ndarray) -> list
     their shapes cannot tell them apart either: nothing in such data separates them. A
     common-pole model still fits two poles there where the peak moves between the
     measurements (ModeLAB's roving-hammer beam: pairs 0.008-0.018 Hz apart at 0.0195 Hz
-    lines once the reference took the scan's block rows, each pair's likelihood ratio far
+    lines with the scan's block rows for the reference, each pair's likelihood ratio far
     beyond the split-resonance test's limit). The strongest (largest SNR feature,
     :data:`automodal.core.physicalness.SNR_FEATURE_NAME`) stays physical; the others within
     a line of it get physicalness 0.
