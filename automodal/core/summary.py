@@ -364,7 +364,8 @@ def refine_physical_modes(
     """
     counts = Counter(m.reference_mode for m in modes if m.physical and m.reference_mode >= 0)
     chosen = sorted(i for i, c in counts.items() if c == 1)
-    lines_hz = omega / (2.0 * np.pi)
+    # the lines as measured (prewarped ones of sampled spectra mapped back), in Hz
+    lines_hz = (omega if pole_map is None else pole_map(1j * omega).imag) / (2.0 * np.pi)
     decay = 0.0 if pole_map is None else pole_map.shift
     single = min(H.shape[1:]) == 1
     if not chosen:  # nothing to refine: no mode has the likelihood's support
