@@ -76,7 +76,8 @@ class Settings:
     zeta_max : float
         Largest damping ratio of a physical candidate, in ``(0, 1)``.
     min_physicalness : float
-        Physicalness from which a cluster is called physical, in ``[0, 1]``.
+        Physicalness from which a cluster is called physical, in ``(0, 1]`` (the vetoes and
+        the refinement's tests give physicalness 0, which is never physical).
     coalescence : float
         Poles closer than this many half-power bandwidths form one group, ``> 0``.
     resample : {"auto", "lines", "records", "noise"}
@@ -146,8 +147,10 @@ class Settings:
         self._check_interval("threshold", self.threshold, 0.0, 1.0, "a number in (0, 1]",
                              closed_hi=True)
         self._check_interval("zeta_max", self.zeta_max, 0.0, 1.0, "a number in (0, 1)")
+        # above 0: a cluster that a veto, a split-resonance or a resolution test gave
+        # physicalness 0 must not be physical
         self._check_interval("min_physicalness", self.min_physicalness, 0.0, 1.0,
-                             "a number in [0, 1]", closed_lo=True, closed_hi=True)
+                             "a number in (0, 1]", closed_hi=True)
         self._check_interval("coalescence", self.coalescence, 0.0, math.inf,
                              "a finite number > 0")
         if self.block_rows is not None and not (

@@ -102,10 +102,10 @@ def test_zeta_max(value):
     assert Settings(zeta_max=0.99).zeta_max == 0.99
 
 
-@pytest.mark.parametrize("value", [-0.01, 1.01, np.nan, None])
+@pytest.mark.parametrize("value", [0.0, -0.01, 1.01, np.nan, None])
 def test_min_physicalness(value):
-    assert "[0, 1]" in str(_refused("min_physicalness", min_physicalness=value))
-    assert Settings(min_physicalness=0.0).min_physicalness == 0.0
+    assert "(0, 1]" in str(_refused("min_physicalness", min_physicalness=value))
+    assert Settings(min_physicalness=0.01).min_physicalness == 0.01
     assert Settings(min_physicalness=1).min_physicalness == 1
 
 
