@@ -554,3 +554,34 @@ def test_a_single_input_reports_one_mode_where_two_poles_share_a_line():
     close = [_mode(0, True, 10.0), _mode(-1, True, 10.002)]
     out = refine_physical_modes(close, states, np.array([0, 1]), omega, H, variance)
     assert sum(m.physical for m in out) == 1
+
+
+def test_the_resolution_test_judges_the_lines_as_measured():
+    """Sampled spectra are fitted at prewarped lines ``2 fs tan(w / 2 fs)``, far apart near
+    the Nyquist frequency, and an exponential window widens every peak: the test of an
+    unrefined physical mode uses the lines as measured and the window's decay, through the
+    pole map (without it, the same prewarped lines would call the mode unresolved)."""
+    from dataclasses import replace
+
+    from automodal.core.pole_map import PoleMap
+    from automodal.core.summary import refine_physical_modes, resolved
+
+    lines_hz = np.arange(1.0, 12.0, 0.1)  # fs 25 Hz: Nyquist 12.5 Hz
+    sampled = PoleMap(sample_rate=25.0)
+    omega = sampled.model_omega(2 * np.pi * lines_hz)
+    H = np.zeros((lines_hz.size, 2, 2), complex)
+    variance = np.ones(H.shape)
+    mode = replace(_mode(-1, True, 11.5), damping_ratio=0.01)  # 2 zeta f = 1.6 lines
+    assert resolved(11.5, 0.01, lines_hz) and not resolved(11.5, 0.01, omega / (2 * np.pi))
+
+    def physical(pole_map, omega=omega, m=mode):
+        out = refine_physical_modes([m], np.zeros(0, complex), np.zeros(0, int), omega, H,
+                                    variance, pole_map)
+        return out[0].physical
+
+    assert physical(sampled) and not physical(None)
+    # a peak 0.8 lines wide, widened by a window decay of pi x 0.1 (1/s) to 1.8 lines
+    narrow = replace(mode, damping_ratio=0.0035)
+    window = PoleMap(shift=np.pi * 0.1)
+    measured = 2 * np.pi * lines_hz
+    assert physical(window, measured, narrow) and not physical(None, measured, narrow)
