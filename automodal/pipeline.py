@@ -732,8 +732,8 @@ def resolution_warnings(
     for m in sorted((m for m in modes if m.physical), key=lambda m: m.frequency_hz):
         if not (np.isfinite(m.frequency_hz) and np.isfinite(m.damping_ratio)):
             continue
-        df = local_spacing(f, m.frequency_hz)
         if not resolved(m.frequency_hz, m.damping_ratio, f, window_decay):
+            df = local_spacing(f, m.frequency_hz)
             out.append(
                 f"the mode at {m.frequency_hz:.4g} Hz: its half-power bandwidth"
                 f" (2 zeta f = {2 * m.damping_ratio * m.frequency_hz:.3g} Hz) is below"

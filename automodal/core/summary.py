@@ -368,10 +368,20 @@ def refine_physical_modes(
     lines_hz = (omega if pole_map is None else pole_map(1j * omega).imag) / (2.0 * np.pi)
     decay = 0.0 if pole_map is None else pole_map.shift
     single = min(H.shape[1:]) == 1
-    if not chosen:  # nothing to refine: no mode has the likelihood's support
-        out = [replace(m, physical=False, physicalness=0.0) if m.physical and not resolved(
-            m.frequency_hz, m.damping_ratio, lines_hz, decay) else m for m in modes]
+
+    def held(m: IdentifiedMode) -> IdentifiedMode:
+        # a mode the likelihood does not hold: physical only where the lines resolve it
+        # (else the replicates agree on it only as they share the data's one noise
+        # realization)
+        if m.physical and not resolved(m.frequency_hz, m.damping_ratio, lines_hz, decay):
+            return _not_physical(m)
+        return m
+
+    def finished(out: list[IdentifiedMode]) -> list[IdentifiedMode]:
         return numbered(one_mode_per_line(out, lines_hz) if single else out)
+
+    if not chosen:  # nothing to refine: no mode has the likelihood's support
+        return finished([held(m) for m in modes])
     chosen_states = oscillatory[np.array(chosen, dtype=int)]
     used = np.zeros(states.size, bool)
     used[chosen_states] = True
@@ -422,11 +432,7 @@ def refine_physical_modes(
     for m in modes:
         j = slot.get(m.reference_mode, -1)
         if j < 0 or not ok[j] or (j < k and not m.physical):
-            if m.physical and not resolved(m.frequency_hz, m.damping_ratio, lines_hz, decay):
-                # neither the lines resolve it nor the likelihood holds it: the replicates
-                # agree on it only as they share the data's one noise realization
-                m = replace(m, physical=False, physicalness=0.0)
-            out.append(m)
+            out.append(held(m))
             continue
         if j >= k:  # a companion that stayed: physical on the likelihood ratio
             if _companion_vetoed(m) or not resolved(f[j], z[j], lines_hz, decay):
@@ -436,7 +442,7 @@ def refine_physical_modes(
                 continue
             m = replace(m, physical=True)
         elif duplicate[j]:  # the data need no second pole there: a split resonance
-            m = replace(m, physical=False, physicalness=0.0)
+            m = _not_physical(m)
         out.append(replace(
             m, frequency_hz=float(f[j]), frequency_std_hz=float(f_std[j]),
             frequency_ci95_hz=(float(f[j] - 1.96 * f_std[j]), float(f[j] + 1.96 * f_std[j])),
@@ -444,9 +450,12 @@ def refine_physical_modes(
             damping_ci95=(float(z[j] - 1.96 * z_std[j]), float(z[j] + 1.96 * z_std[j])),
             **_fit_shape(m, shapes[:, j]), estimator="ml",
         ))
-    if single:
-        out = one_mode_per_line(out, lines_hz)
-    return numbered(out)
+    return finished(out)
+
+
+def _not_physical(m: IdentifiedMode) -> IdentifiedMode:
+    """``m`` not physical, with physicalness 0 (a test after the clustering ruled it out)."""
+    return replace(m, physical=False, physicalness=0.0)
 
 
 def one_mode_per_line(modes: list[IdentifiedMode], lines_hz: np.ndarray) -> list[IdentifiedMode]:
@@ -474,7 +483,7 @@ def one_mode_per_line(modes: list[IdentifiedMode], lines_hz: np.ndarray) -> list
         f = modes[i].frequency_hz
         if any(abs(f - g) < max(local_spacing(lines_hz, f), local_spacing(lines_hz, g))
                for g in kept):
-            out[i] = replace(modes[i], physical=False, physicalness=0.0)
+            out[i] = _not_physical(modes[i])
         else:
             kept.append(f)
     return out
