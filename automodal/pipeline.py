@@ -685,6 +685,7 @@ def _orders_info(
         "misfit": [float(x) for x in choice.misfit],
         "n0": int(choice.n0),
         "n0_rule": choice.rule,
+        "noise_directions": choice.noise_directions,
         "reference": int(choice.reference),
         "block_rows": int(ref.q),
         "basis": "monomial" if ref.basis.monomial else "orthonormal",

@@ -126,6 +126,7 @@ def misfit_scan(
     z_alarm: float = 0.0,
     models: list[tuple[int, np.ndarray, np.ndarray]] | None = None,
     jobs: int | None = None,
+    schur: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray] | tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Misfit ``MC(n)`` of the models of each order, from one observability subspace.
 
@@ -173,6 +174,9 @@ def misfit_scan(
         the cores free as the scan goes); the result does not depend on it. On one core
         the whole band of an 8 x 10 grid (40 outputs, 3 inputs, 3000 lines) was scanned
         alone for 3.6 s before it was split, the other core idle.
+    schur : ndarray, optional
+        :func:`automodal.core.subspace.single_schur` of ``basis``, ``H`` and ``weights``,
+        when the caller has it already.
 
     Returns
     -------
@@ -184,7 +188,8 @@ def misfit_scan(
         With ``variance`` only: the whitened residual per order (on the lines of the fit).
     """
     N, ny, _ = H.shape
-    O, _, _ = subspace.observability(basis, H, int(np.max(orders)), weights=weights, jobs=jobs)
+    O, _, _ = subspace.observability(basis, H, int(np.max(orders)), weights=weights, jobs=jobs,
+                                     schur=schur)
     sub = np.unique(np.linspace(0, N - 1, min(N, max_lines)).round().astype(int))
     w_sub = None if weights is None else weights[sub]
     var_sub = None if variance is None else variance[sub]
@@ -466,12 +471,19 @@ def scan(
     spent 0.9 of its 2.1 s of rescanning on them). ``jobs``: worker threads of each stage
     (:func:`misfit_scan`).
 
+    With ``variance``, each stage also counts the directions its projection shows above
+    the noise (:func:`noise_directions`), and the stage's order is the smaller of that
+    count and the significant order (:func:`capped_order`): a stage is extended only while
+    that order lies in its last third.
+
     Returns
     -------
     orders, misfit : ndarray
         As :func:`misfit_scan` gives them for the last stage.
     chi2 : ndarray
         With ``variance`` only: the whitened residual per order.
+    directions : int or None
+        With ``variance`` only: :func:`noise_directions` of the last stage's projection.
     """
     N, ny, nu = H.shape
     while n_max > 4 and subspace.scan_block_rows(n_max, ny) * (nu + ny) > 2 * N * nu:
@@ -483,15 +495,20 @@ def scan(
         if stages is None or key not in stages:
             basis = subspace.row_basis(z, subspace.scan_block_rows(int(planned[-1]), ny))
             staged: list[tuple[int, np.ndarray, np.ndarray]] = []
-            kwargs = {} if variance is None else {
+            kwargs: dict = {} if variance is None else {
                 "variance": variance, "params": params, "z_alarm": z_alarm}
+            directions = None
+            if variance is not None:
+                S = subspace.single_schur(basis, H, weights, jobs)
+                kwargs["schur"] = S
+                directions = noise_directions_of(S, basis, variance, weights, nu)
             result = misfit_scan(z, H, planned, basis, weights=weights,
                                  stop_after=2 * n_peaks + 40, models=staged, jobs=jobs,
                                  **kwargs)
             if stages is not None:
-                stages[key] = (result, staged)
+                stages[key] = (result, staged, directions)
         else:
-            result, staged = stages[key]
+            result, staged, directions = stages[key]
         if models is not None:
             models[:] = staged  # only the last stage's models are kept
         if variance is None:
@@ -502,7 +519,8 @@ def scan(
                 return orders, misfit
         else:
             orders, misfit, chi2 = result
-            n0 = significant_order(orders, chi2, params, z_alarm, ORDER_TOLERANCE)
+            n0 = capped_order(orders, significant_order(
+                orders, chi2, params, z_alarm, ORDER_TOLERANCE), directions)
             # a misfit still falling extends the stage only while the model of n0 is not
             # yet within the noise: beyond that it is noise being fitted (a 6-DOF chain
             # whose upper band is noise: n0 = 12 at a residual 0.97 times its degrees of
@@ -513,8 +531,91 @@ def scan(
                         and (not still_falling(orders, misfit)
                              or fits_noise(chi2[list(orders).index(n0)],
                                            min(N, SCAN_LINES), ny, nu, n0)))):
-                return orders, misfit, chi2
+                return orders, misfit, chi2, directions
         stage = min(n_max, 2 * stage)
+
+
+NOISE_EIGENVALUE_MARGIN = 2.0
+"""A direction of the noise-whitened projection counts as the system's when its eigenvalue
+exceeds this many times the largest that noise alone gives (:func:`noise_directions`).
+The noise variance estimated from the data is within about 20 % of the truth
+(``tests/test_noise.py``); pure noise of any variance shape stays below this margin
+(``tests/test_noise_directions.py``), and on the calibration seeds 281 and 283 (64 files,
+86 scans) the largest eigenvalue below it was at most 2.0 times the edge, while the count
+never fell below twice the band's clear and marginal modes. A mode adds about half its
+squared signal-to-noise ratio to each of its two directions, so the margin still counts a
+mode of SNR 3."""
+
+
+def noise_directions(eigenvalues: np.ndarray, n_rows: int, n_columns: int) -> int | None:
+    """The directions of a noise-whitened projection above the noise: how many states the
+    data show.
+
+    Noise alone, whitened by its own covariance, gives a Wishart matrix of ``n_rows`` rows
+    over ``n_columns`` columns scaled by ``1 / n_columns``; its largest eigenvalue lies
+    near the Marchenko-Pastur edge ``(1 + sqrt(n_rows / n_columns))^2``. The count of
+    eigenvalues above :data:`NOISE_EIGENVALUE_MARGIN` times that edge, rounded up to even
+    (a mode is two states).
+
+    Returns
+    -------
+    int or None
+        None when the count does not stop short of ``n_rows`` (all the rows but two
+        above the noise: the projection saw no noise floor, so it bounds nothing).
+    """
+    ev = np.asarray(eigenvalues, dtype=float)
+    if ev.size == 0 or n_columns <= 0 or not np.all(np.isfinite(ev)):
+        return None
+    edge = (1.0 + np.sqrt(n_rows / n_columns)) ** 2
+    count = int(np.count_nonzero(ev > NOISE_EIGENVALUE_MARGIN * edge))
+    count += count % 2
+    return None if count >= n_rows - 2 else count
+
+
+def noise_directions_of(
+    S: np.ndarray, basis: subspace.RowBasis, variance: np.ndarray,
+    weights: np.ndarray | None, nu: int,
+) -> int | None:
+    """:func:`noise_directions` of the projection ``S``
+    (:func:`automodal.core.subspace.single_schur` of data with ``nu`` inputs, ``basis``
+    and ``weights``), whitened by the noise ``variance``
+    (:func:`automodal.core.subspace.noise_whitened_spectrum`); None if the noise covariance
+    is singular."""
+    try:
+        ev, columns = subspace.noise_whitened_spectrum(S, basis, variance, weights)
+    except np.linalg.LinAlgError:
+        return None
+    # the projection takes the input rows' q nu dimensions out of the columns
+    return noise_directions(ev, S.shape[0], columns - basis.q * nu)
+
+
+DIRECTIONS_EXCESS = 2.0
+"""``n0`` under the significance rule takes at most this many times the states the
+projection shows above the noise (:func:`capped_order`). Capped at the states alone,
+high-SNR files lost clear modes that the extra states had let the subspace models fit
+(calibration seed 281: f_18, a 6 x 1 chain with 1 % proportional noise, lost 34.46 Hz at an
+SNR of 1795 with 20 states against 34; f_17, a 34 x 3 dense grid, one mode and five
+intervals): those states absorb the subspace estimate's own bias. The significance test
+gave ``n0`` up to about twice the true order where the models reach the noise (the
+calibration of :data:`SIGNIFICANT_EXCESS`), so the cap leaves those alone."""
+
+
+def capped_order(orders: np.ndarray, n: int, directions: int | None) -> int:
+    """``n``, at most the smallest scanned order that holds :data:`DIRECTIONS_EXCESS` times
+    ``directions`` states.
+
+    The significant order of the whitened residual (:func:`significant_order`) reads every
+    gain of a higher order as modes; where the subspace models stay off the data by more
+    than the noise (a high-SNR chain with proportional noise: the residual of the true
+    order's model 25 to 500 times its degrees of freedom, from the subspace estimate's own
+    bias), those gains are that bias shrinking, and the order ran to 3-6 times the true one
+    (family seed 281, f_15: 58 states for 6 modes; 283 f_13: 76 for 10). The directions the
+    projection shows above the noise do not depend on any model's fit."""
+    if directions is None:
+        return int(n)
+    orders = np.asarray(orders)
+    holding = orders[orders >= DIRECTIONS_EXCESS * directions]
+    return int(min(n, holding[0] if holding.size else orders[-1]))
 
 
 @dataclass
@@ -550,6 +651,10 @@ class OrderChoice:
         Whether the scan ended where it would have without ``split_work``: its last
         stage's order was below the one that ends a scan early (``split_above`` of
         :func:`scan`), so a scan without ``split_work`` would give the same choice.
+    noise_directions : int or None
+        With a noise model: the states the scan's projection shows above the noise
+        (:func:`noise_directions`), the most ``n0`` takes under the significance rule;
+        None without a noise model, or where the projection saw no noise floor.
     """
 
     scanned: np.ndarray
@@ -562,6 +667,7 @@ class OrderChoice:
     models: list[tuple[int, np.ndarray, np.ndarray]] = field(default_factory=list)
     block_rows: int = 0
     complete: bool = True
+    noise_directions: int | None = None
 
 
 SIGNIFICANT_EXCESS = 2.0
@@ -665,7 +771,7 @@ def select_orders(
     cap = n_limit if max_order is not None else min(n_limit, MAX_REFERENCE_ORDER)
     if reference_cap is not None:
         cap = max(4, min(cap, int(reference_cap) - int(reference_cap) % 2))
-    chi2 = None
+    chi2 = directions = None
     rule = "floor" if variance is None else "significance"
     models: list[tuple[int, np.ndarray, np.ndarray]] = []
     if variance is None:
@@ -677,15 +783,20 @@ def select_orders(
         p = mode_parameters(ny, nu)
         tv = test_variance(H, variance)
         split_above = _split_above(N, ny, nu, cap, SIGNIFICANT_EXCESS, split_work)
-        orders, misfit, chi2 = scan(
+        orders, misfit, chi2, directions = scan(
             z, H, weights, n_scan, count_peaks(H, variance=tv), tv, p, z_alarm, models=models,
             split_above=split_above, stages=stages, jobs=jobs)
         n0 = significant_order(orders, chi2, p, z_alarm, ORDER_TOLERANCE)
-    complete = not _splits(n0, split_above)  # the scan's own n0, as its last stage saw it
+    # the scan's own n0, as its last stage saw it (the model test below judges the
+    # significant order itself; the noise's directions cap what it leaves)
+    complete = not _splits(n0 if variance is None else capped_order(orders, n0, directions),
+                           split_above)
     if variance is not None:
         i0 = int(np.flatnonzero(orders == n0)[0])
         if not fits_noise(chi2[i0], min(N, SCAN_LINES), ny, nu, n0):
             n0, rule = order_off_the_noise(n0, order_at_floor(orders, misfit), ny, rank)
+        if rule == "significance":
+            n0 = capped_order(orders, n0, directions)
     factor = 3.0 if rule == "floor" else SIGNIFICANT_EXCESS
     n_ref = excessive_order(n0, cap, factor)
     n0 = min(n0, n_ref)
@@ -698,7 +809,8 @@ def select_orders(
     if min_block_rows is not None:
         q = max(q, min(int(min_block_rows), rows))
     return OrderChoice(scanned=orders, misfit=misfit, n0=n0, reference=n_ref, limit=n_limit,
-                       chi2=chi2, rule=rule, models=models, block_rows=q, complete=complete)
+                       chi2=chi2, rule=rule, models=models, block_rows=q, complete=complete,
+                       noise_directions=directions)
 
 
 def order_off_the_noise(n0: int, floor: int, ny: int, rank: int | None) -> tuple[int, str]:

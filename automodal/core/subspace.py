@@ -802,6 +802,7 @@ def observability(
     method: str = "auto",
     weights: np.ndarray | None = None,
     jobs: int | None = 1,
+    schur: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, str]:
     """Observability basis ``O`` (``q ny x n``) of scaled FRF data.
 
@@ -820,6 +821,8 @@ def observability(
         Line weights (:func:`envelope_weights`, bootstrap counts, or their product).
     jobs : int or None
         Worker threads of the Gram matrix (:func:`schur_from_data`).
+    schur : ndarray, optional
+        :func:`single_schur` of the same arguments, when the caller has it already.
 
     Returns
     -------
@@ -832,12 +835,67 @@ def observability(
     if method not in ("auto", "gram", "qr"):
         raise ValueError(f"unknown method {method!r}")
     if method in ("auto", "gram"):
-        S = single_schur(basis, H, weights, jobs)
+        S = single_schur(basis, H, weights, jobs) if schur is None else schur
         O, sv = observability_from_schur(S, n)
         if method == "gram" or gram_resolves(sv):
             return O, sv, "gram"
     O, sv = observability_from_l22(projected_output_qr(basis, H, weights), n)
     return O, sv[:n], "qr"
+
+
+def noise_whitened_spectrum(
+    S: np.ndarray, basis: RowBasis, variance: np.ndarray, weights: np.ndarray | None = None,
+) -> tuple[np.ndarray, float]:
+    """Eigenvalues (descending) of ``K^-1/2 L22 L22^T K^-T/2``, with ``K`` the covariance
+    of the noise in the output rows of the data matrix, and the noise's effective number of
+    real columns.
+
+    The noise ``e`` of entry ``(k, a, b)`` (variance ``v_kab``) enters output row
+    ``(i, a)`` (block row ``i``, output ``a``) of the real-stacked data matrix as
+    ``p_i(z_k) e`` in the columns of line ``k``, so the rows' noise covariance is block
+    diagonal over the outputs: ``K_a[i, j] = Re sum_k c_k p_i(z_k) conj(p_j(z_k)) sum_b
+    v_kab`` (``c_k`` the line weights). With ``K`` the exact noise covariance, whatever its
+    shape over lines and entries, noise alone gives eigenvalues near 1 (McKelvey, Akcay and
+    Ljung 1996: the subspace of ``K^-1/2 L22`` is then estimated consistently), and each
+    direction of the system adds its signal-to-noise power: the count of eigenvalues above
+    the noise's is the order the data show (:func:`automodal.core.order.noise_directions`).
+
+    Lines whose whitened noise is larger than others' (line weights that follow only the
+    trend of a proportional noise, not each resonance) spread the noise's eigenvalues as
+    fewer columns would: the effective number of columns is ``2 nu (sum e_k)^2 / sum
+    e_k^2``, with ``e_k`` the whitened noise power of line ``k`` (``2 N nu`` when every
+    line carries the same).
+
+    Parameters
+    ----------
+    S : ndarray, shape (q ny, q ny)
+        :func:`single_schur` of the data.
+    basis : RowBasis
+        The row basis ``S`` was formed with.
+    variance : ndarray, shape (N, ny, nu)
+        Noise variance of the data's entries (in the data's units).
+    weights : ndarray, shape (N,), optional
+        The line weights ``S`` was formed with.
+    """
+    P = np.asarray(basis.values)
+    if weights is not None:
+        P = P * np.sqrt(np.asarray(weights, float))[None, :]
+    per_output = np.asarray(variance, float).sum(axis=2)  # (N, ny)
+    q, ny = P.shape[0], per_output.shape[1]
+    whitening = np.zeros((q * ny, q * ny))
+    power = np.zeros(P.shape[1])  # whitened noise power of each line
+    for a in range(ny):
+        K = ((P * per_output[:, a][None, :]) @ P.conj().T).real
+        rows = np.arange(q) * ny + a
+        # K = L L^T: the rows of output a whitened by L^-1
+        Linv = sla.solve_triangular(np.linalg.cholesky(K), np.eye(q), lower=True,
+                                    check_finite=False)
+        whitening[np.ix_(rows, rows)] = Linv
+        power += per_output[:, a] * np.sum(np.abs(Linv @ P) ** 2, axis=0)
+    X = whitening @ S @ whitening.T
+    nu = np.asarray(variance).shape[2]
+    columns = 2.0 * nu * float(np.sum(power)) ** 2 / max(float(np.sum(power**2)), 1e-300)
+    return np.linalg.eigvalsh(0.5 * (X + X.T))[::-1], columns
 
 
 def gram_resolves(singular_values: np.ndarray) -> bool:
