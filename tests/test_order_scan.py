@@ -14,7 +14,8 @@ def _exact(n_dof: int = 3, outputs=(0, 1, 2), n_lines: int = 400):
     """Noise-free FRFs of a small chain, as the pipeline scales and weighs them."""
     system = sim.damp(sim.chain(n_dof), "rayleigh", zeta=0.02)
     freq = sim.frequency_lines(1.25 * sim.natural_frequencies_hz(system).max(), n_lines)
-    data, _ = sim.simulate_test(system, list(outputs), [n_dof - 1], freq, "displacement")
+    data, _ = sim.simulate_test(system, list(outputs), [n_dof - 1], freq, "displacement",
+                                noise=0.0)
     keep = data.frequency > 0
     w = 2 * np.pi * data.frequency[keep]
     T = bilinear.default_scale(w[0], w[-1])
