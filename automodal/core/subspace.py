@@ -892,7 +892,7 @@ def noise_whitened_spectrum(
     # S's rows are (block row i, output a): its q x q blocks S_ab, each whitened on both
     # sides (2 ny^2 q^3 flops, not the (q ny)^3 of a block-diagonal product)
     blocks = S.reshape(q, ny, q, ny).transpose(1, 3, 0, 2)
-    X = (Linv[:, None] @ blocks @ Linv[None].transpose(0, 1, 3, 2))
+    X = Linv[:, None] @ blocks @ Linv[None].transpose(0, 1, 3, 2)
     X = X.transpose(0, 2, 1, 3).reshape(ny * q, ny * q)  # rows (output, block row)
     nu = np.asarray(variance).shape[2]
     columns = 2.0 * nu * float(np.sum(power)) ** 2 / max(float(np.sum(power**2)), 1e-300)
