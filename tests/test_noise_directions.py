@@ -34,7 +34,6 @@ def _directions(z, H, variance, q):
     weights = np.ones(z.size)
     S = subspace.single_schur(basis, H, weights)
     ev, columns = subspace.noise_whitened_spectrum(S, basis, variance, weights)
-    columns -= basis.q * H.shape[2]
     return ev, order.noise_directions(ev, S.shape[0], columns), columns
 
 

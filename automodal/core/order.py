@@ -498,18 +498,17 @@ def scan(
             staged: list[tuple[int, np.ndarray, np.ndarray]] = []
             kwargs: dict = {} if variance is None else {
                 "variance": variance, "params": params, "z_alarm": z_alarm}
-            directions = None
-            if variance is not None:
+            S = None
+            if variance is not None:  # kept for the noise's directions, should the scan end here
                 S = subspace.single_schur(basis, H, weights, jobs)
                 kwargs["schur"] = S
-                directions = noise_directions_of(S, basis, variance, weights, nu)
             result = misfit_scan(z, H, planned, basis, weights=weights,
                                  stop_after=2 * n_peaks + 40, models=staged, jobs=jobs,
                                  **kwargs)
             if stages is not None:
-                stages[key] = (result, staged, directions)
+                stages[key] = (result, staged, basis, S)
         else:
-            result, staged, directions = stages[key]
+            result, staged, basis, S = stages[key]
         if models is not None:
             models[:] = staged  # only the last stage's models are kept
         if variance is None:
@@ -531,7 +530,7 @@ def scan(
                         and (not still_falling(orders, misfit)
                              or fits_noise(chi2[list(orders).index(n0)],
                                            min(N, SCAN_LINES), ny, nu, n0)))):
-                return orders, misfit, chi2, directions
+                return orders, misfit, chi2, noise_directions_of(S, basis, variance, weights)
         stage = min(n_max, 2 * stage)
 
 
@@ -574,19 +573,18 @@ def noise_directions(eigenvalues: np.ndarray, n_rows: int, n_columns: int) -> in
 
 def noise_directions_of(
     S: np.ndarray, basis: subspace.RowBasis, variance: np.ndarray,
-    weights: np.ndarray | None, nu: int,
+    weights: np.ndarray | None,
 ) -> int | None:
     """:func:`noise_directions` of the projection ``S``
-    (:func:`automodal.core.subspace.single_schur` of data with ``nu`` inputs, ``basis``
-    and ``weights``), whitened by the noise ``variance``
+    (:func:`automodal.core.subspace.single_schur` of data with ``basis`` and ``weights``),
+    whitened by the noise ``variance``
     (:func:`automodal.core.subspace.noise_whitened_spectrum`); None if the noise covariance
     is singular."""
     try:
         ev, columns = subspace.noise_whitened_spectrum(S, basis, variance, weights)
     except np.linalg.LinAlgError:
         return None
-    # the projection takes the input rows' q nu dimensions out of the columns
-    return noise_directions(ev, S.shape[0], columns - basis.q * nu)
+    return noise_directions(ev, S.shape[0], columns)
 
 
 DIRECTIONS_EXCESS = 2.0

@@ -848,7 +848,7 @@ def noise_whitened_spectrum(
 ) -> tuple[np.ndarray, float]:
     """Eigenvalues (descending) of ``K^-1/2 L22 L22^T K^-T/2``, with ``K`` the covariance
     of the noise in the output rows of the data matrix, and the noise's effective number of
-    real columns.
+    real columns left by the projection.
 
     The noise ``e`` of entry ``(k, a, b)`` (variance ``v_kab``) enters output row
     ``(i, a)`` (block row ``i``, output ``a``) of the real-stacked data matrix as
@@ -864,7 +864,8 @@ def noise_whitened_spectrum(
     trend of a proportional noise, not each resonance) spread the noise's eigenvalues as
     fewer columns would: the effective number of columns is ``2 nu (sum e_k)^2 / sum
     e_k^2``, with ``e_k`` the whitened noise power of line ``k`` (``2 N nu`` when every
-    line carries the same).
+    line carries the same), less the ``q nu`` dimensions the projection on the input rows
+    takes out.
 
     Parameters
     ----------
@@ -896,7 +897,7 @@ def noise_whitened_spectrum(
     X = X.transpose(0, 2, 1, 3).reshape(ny * q, ny * q)  # rows (output, block row)
     nu = np.asarray(variance).shape[2]
     columns = 2.0 * nu * float(np.sum(power)) ** 2 / max(float(np.sum(power**2)), 1e-300)
-    return np.linalg.eigvalsh(0.5 * (X + X.T))[::-1], columns
+    return np.linalg.eigvalsh(0.5 * (X + X.T))[::-1], columns - q * nu
 
 
 def gram_resolves(singular_values: np.ndarray) -> bool:
