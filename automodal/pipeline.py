@@ -544,32 +544,16 @@ def _identify(
             f"{s.max_order // 2} modes) was reached before a model fitted the data "
             f"({order.count_peaks(p.Hs)} resonance peaks in the FRF): raise it, or leave it "
             "automatic")
-    tell(progress, "reference")
-    ref = reference.build_reference(
-        p.z, p.Hs, p.scales, p.line_weights, choice.reference, p.T,
-        p.band_rad_s, s.zeta_max, s.coalescence, p.pole_map, choice.block_rows,
-    )
-    ref_dispersion, H_ref = 1.0, None
-    if p.variance is not None:
-        H_ref = ref.modal.frequency_response(p.z)
-        ref_dispersion = whitening.dispersion(H_ref, p.Hs, p.variance, choice.reference)
-    reps = _replicates(p, s, ref, choice.reference, counter(progress, "bootstrap", s.n_bootstrap),
-                       warnings, ref_dispersion, H_ref)
-    tell(progress, "summary")
-    clusters = reference.cluster_against_reference(ref, reps, s.n_bootstrap, s.threshold)
-    snr2 = None
-    if p.variance is not None:
-        snr2 = whitening.mode_snr2(ref.modal, p.z, p.variance, jobs=s.jobs) / ref_dispersion
-    modes = summary.summarise_clusters(
-        clusters.labels, clusters.rho, reps.poles, reps.shapes, reps.replicate,
-        clusters.subspaces, ref.modes, p.scales, ref.contribution, s.n_bootstrap,
-        s.min_physicalness, snr2, whitening.mode_parameters(*p.Hs.shape[1:]),
-    )
-    if p.noise is not None and _independent_lines(p.data):
-        tell(progress, "refinement")
-        modes = summary.refine_physical_modes(
-            modes, ref.modal.poles, ref.modal.oscillatory, p.omega, p.H, p.noise_variance,
-            p.pole_map, s.jobs)
+    a = _analyse(p, s, choice, choice.block_rows, progress)
+    tried = [a.ref.q]
+    retry = _retry_block_rows(p, choice, a)
+    if retry is not None:
+        b = _analyse(p, s, choice, retry, within(progress, f"{retry} block rows"))
+        tried.append(b.ref.q)
+        if summary.confirmed_modes(b.modes) > summary.confirmed_modes(a.modes):
+            a = b
+    warnings.extend(a.warnings)
+    ref, reps, clusters, modes = a.ref, a.reps, a.clusters, a.modes
     fit = _physical_fit(p, modes)
     if not part:
         warnings.extend(resolution_warnings(modes, p.frequency, p.pole_map.shift))
@@ -582,7 +566,7 @@ def _identify(
         poles=PoleTable.from_poles(reps.poles, clusters.labels, reps.replicate),
         band_hz=(float(p.band_hz[0]), float(p.band_hz[1])),
         orders=_orders_info(choice, ref, reps.n_qr, p.T, p.weighting, p.pole_map,
-                            "measured" if p.factor is None else "receptance"),
+                            "measured" if p.factor is None else "receptance", tried),
         runtime_s=time.perf_counter() - t0,
         reference_model=ref.model,
         reciprocity=p.reciprocal,
@@ -593,8 +577,84 @@ def _identify(
         shape_channels=list(p.data.input_names if p.reciprocal else p.data.output_names),
         n_lines=int(p.H.shape[0]),
         noise=None if p.noise is None else NoiseInfo.from_estimate(
-            p.noise, list(p.data.output_names), ref_dispersion),
+            p.noise, list(p.data.output_names), a.dispersion),
     )
+
+
+@dataclass
+class _Analysis:
+    """A band's analysis at one number of block rows: the reference model, its dispersion
+    against the noise model, the replicates, their clusters, the modes and the warnings the
+    replicates gave."""
+
+    ref: reference.Reference
+    dispersion: float
+    reps: replicates.ReplicatePoles
+    clusters: reference.Clusters
+    modes: list[IdentifiedMode]
+    warnings: list[str]
+
+
+def _analyse(
+    p: Prepared, s: Settings, choice: order.OrderChoice, q: int,
+    progress: ProgressCallback | None,
+) -> _Analysis:
+    """Reference model, bootstrap, clusters, modes and refinement of the prepared band at
+    the chosen orders and ``q`` block rows."""
+    warnings: list[str] = []
+    tell(progress, "reference")
+    ref = reference.build_reference(
+        p.z, p.Hs, p.scales, p.line_weights, choice.reference, p.T,
+        p.band_rad_s, s.zeta_max, s.coalescence, p.pole_map, q,
+    )
+    dispersion, H_ref = 1.0, None
+    if p.variance is not None:
+        H_ref = ref.modal.frequency_response(p.z)
+        dispersion = whitening.dispersion(H_ref, p.Hs, p.variance, choice.reference)
+    reps = _replicates(p, s, ref, choice.reference, counter(progress, "bootstrap", s.n_bootstrap),
+                       warnings, dispersion, H_ref)
+    tell(progress, "summary")
+    clusters = reference.cluster_against_reference(ref, reps, s.n_bootstrap, s.threshold)
+    snr2 = None
+    if p.variance is not None:
+        snr2 = whitening.mode_snr2(ref.modal, p.z, p.variance, jobs=s.jobs) / dispersion
+    modes = summary.summarise_clusters(
+        clusters.labels, clusters.rho, reps.poles, reps.shapes, reps.replicate,
+        clusters.subspaces, ref.modes, p.scales, ref.contribution, s.n_bootstrap,
+        s.min_physicalness, snr2, whitening.mode_parameters(*p.Hs.shape[1:]),
+    )
+    if _refined(p):
+        tell(progress, "refinement")
+        modes = summary.refine_physical_modes(
+            modes, ref.modal.poles, ref.modal.oscillatory, p.omega, p.H, p.noise_variance,
+            p.pole_map, s.jobs)
+    return _Analysis(ref=ref, dispersion=dispersion, reps=reps, clusters=clusters,
+                     modes=modes, warnings=warnings)
+
+
+def _refined(p: Prepared) -> bool:
+    """Whether the physical modes of ``p`` are refined: with a noise model, on lines whose
+    errors are independent (:func:`_independent_lines`)."""
+    return p.noise is not None and _independent_lines(p.data)
+
+
+def _retry_block_rows(p: Prepared, choice: order.OrderChoice, a: _Analysis) -> int | None:
+    """Block rows for a second analysis of the band, or ``None``.
+
+    When the refinement could not confirm a physical mode (its pole left its reach, or its
+    width changed more than :data:`automodal.core.refine.MAX_DAMPING_CHANGE` times, so the
+    mode kept its bootstrap statistics), the reference's pole there is not the data's: the
+    subspace estimate of a band of many close modes seen by many outputs is biased at the
+    default rows (``docs/method.md`` 1). The band is analysed again at the order scan's
+    rows, ``q ny >= 3 n`` (:func:`automodal.core.subspace.scan_block_rows`), as far as a
+    replicate's lines allow, and :func:`_identify` keeps the analysis whose refinement
+    confirms more physical modes.
+    """
+    if not _refined(p) or summary.unconfirmed_modes(a.modes) == 0:
+        return None
+    N, ny, nu = p.Hs.shape
+    q = min(subspace.scan_block_rows(choice.reference, ny), order.block_row_budget(N, ny, nu))
+    return q if q > a.ref.q else None
 
 
 def _replicates(
@@ -673,13 +733,14 @@ def _replicates(
 
 def _orders_info(
     choice: order.OrderChoice, ref: reference.Reference, n_qr: int, T: float,
-    weighting: str, pole_map: PoleMap, form: str,
+    weighting: str, pole_map: PoleMap, form: str, tried: list[int],
 ) -> dict[str, object]:
     """``Result.orders``: the scan, the orders chosen and how the models were computed
     (``weighting``: the one that ran, ``"noise"`` or ``"envelope"``; ``form``: the FRF's
     the models fitted, ``"measured"`` or ``"receptance"``; ``window_decay_per_s``
     and ``discrete_sample_rate_hz``: how the model's poles became the structure's, see
-    :class:`~automodal.core.pole_map.PoleMap`)."""
+    :class:`~automodal.core.pole_map.PoleMap`; ``tried``: the block rows of every analysis
+    of the band, in order, see :func:`_retry_block_rows`)."""
     return {
         "scanned": [int(x) for x in choice.scanned],
         "misfit": [float(x) for x in choice.misfit],
@@ -688,6 +749,7 @@ def _orders_info(
         "noise_directions": choice.noise_directions,
         "reference": int(choice.reference),
         "block_rows": int(ref.q),
+        "block_rows_tried": [int(q) for q in tried],
         "basis": "monomial" if ref.basis.monomial else "orthonormal",
         "weighting": weighting,
         "form": form,

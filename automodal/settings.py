@@ -114,7 +114,9 @@ class Settings:
         modes with the default ``q = 9`` and 34 and 27 with ``q = 18`` and 14
         (``benchmarks/results_sub_band_rows.md``). More rows cost time (a replicate's work
         grows as ``q^2``, its eigenvalues as ``q^3``) and make the split into sub-bands
-        finer.
+        finer. Whatever it is, a band whose refinement cannot confirm a physical mode is
+        analysed again at the order scan's rows when those are more (``docs/method.md``
+        1), and the analysis confirming more physical modes is reported.
     """
 
     band_hz: tuple[float, float] | None = None

@@ -1,5 +1,6 @@
-"""The benchmark's 8 x 10 grid (issue 13's peer case): 80 modes, 40 sensors on half of the
-grid, 3 inputs, 3000 lines, 1 % proportional noise. Slow (about 30 s on two cores)."""
+"""Dense grids of many modes seen by many sensors: the benchmark's 8 x 10 grid (issue 13's
+peer case: 80 modes, 40 sensors on half of the grid, 3 inputs, 3000 lines, 1 % proportional
+noise) and a 7 x 12 grid with additive noise. Slow (30-60 s each on two cores)."""
 
 from __future__ import annotations
 
@@ -14,13 +15,24 @@ from automodal.io.readers import read_any
 from automodal.pipeline import identify
 from automodal.settings import Settings
 
+GRIDS = {
+    # the peer benchmark's case b
+    "8x10": (["--grid", "8", "10", "--outputs", "1-40", "--inputs", "1,40,80", "--seed", "1"],
+             70),
+    # 84 modes, a sensor noise floor
+    "7x12": (["--grid", "7", "12", "--outputs", "1-42", "--inputs", "1,42,84",
+              "--noise-kind", "additive", "--seed", "11"], 60),
+}
+
 
 @pytest.mark.slow
-def test_dense_grid_of_the_peer_benchmark(tmp_path):
+@pytest.mark.parametrize("grid", list(GRIDS))
+def test_dense_grid(tmp_path, grid):
+    args, least = GRIDS[grid]
     path = tmp_path / "grid.h5"
     res = CliRunner().invoke(main, [
-        "simulate", str(path), "--system", "grid", "--grid", "8", "10", "--outputs", "1-40",
-        "--inputs", "1,40,80", "--lines", "3000", "--noise", "0.01", "--seed", "1", "-q"])
+        "simulate", str(path), "--system", "grid", *args, "--lines", "3000", "--noise", "0.01",
+        "-q"])
     assert res.exit_code == 0, res.output
     true_hz = np.sort(json.loads((tmp_path / "grid.modes.json").read_text())["frequency_hz"])
     result = identify(read_any(path), Settings(seed=1))
@@ -36,7 +48,9 @@ def test_dense_grid_of_the_peer_benchmark(tmp_path):
                 used.add(j)
                 hits += 1
                 break
-    # 5 of 80 at 0a030e1 (the sub-band above 15.5 Hz stopped its scan at n0 = 2); the peer,
-    # sdypy-EMA's LSCF handed the true frequencies, picked 59-60
-    assert hits >= 50, (hits, found.size)
-    assert found.size - hits <= 10
+    # 8 x 10: 5 of 80 at 0a030e1 (the sub-band above 15.5 Hz stopped its scan at n0 = 2),
+    # 67 and 7 false at af5a224, 74 and 1 with the second analysis at the scan's block rows;
+    # the peer, sdypy-EMA's LSCF handed the true frequencies, picked 59-60 and 1 false.
+    # 7 x 12: 24 of 84 at af5a224 (its upper sub-band at q = 6), 64 and none false since
+    assert hits >= least, (hits, found.size)
+    assert found.size - hits <= 3

@@ -453,6 +453,18 @@ def refine_physical_modes(
     return finished(out)
 
 
+def confirmed_modes(modes: list[IdentifiedMode]) -> int:
+    """How many physical modes the refinement confirmed (``estimator`` "ml")."""
+    return sum(1 for m in modes if m.physical and m.estimator == "ml")
+
+
+def unconfirmed_modes(modes: list[IdentifiedMode]) -> int:
+    """How many physical modes kept their bootstrap statistics (after
+    :func:`refine_physical_modes`: modes whose refinement failed, or that were not
+    refined)."""
+    return sum(1 for m in modes if m.physical and m.estimator != "ml")
+
+
 def _not_physical(m: IdentifiedMode) -> IdentifiedMode:
     """``m`` not physical, with physicalness 0 (a test after the clustering ruled it out)."""
     return replace(m, physical=False, physicalness=0.0)
