@@ -34,3 +34,18 @@ def test_identify_refuses_bad_input(tmp_path, case):
     assert bad.name in lines[0]
     assert not report.exists()
     assert not any(p.name.startswith(".r.json") for p in tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("scale", [1e200, 1e20, 1e-50, 1e-200])
+def test_identify_refuses_frequencies_not_in_hz(tmp_path, scale):
+    """Lines scaled by 1e200 or 1e-200 ended in a failed SVD (exit 1)."""
+    from frf_builders import mutated, replace, valid_content
+
+    bad = tmp_path / "scaled.h5"
+    mutated(replace("frequency", valid_content()["frequency"] * scale))(bad)
+    report = tmp_path / "r.json"
+    result = run_identify(bad, report)
+    assert result.returncode == 2, result.stderr
+    lines = result.stderr.splitlines()
+    assert len(lines) == 1 and "give the frequencies in Hz" in lines[0], result.stderr
+    assert not report.exists()

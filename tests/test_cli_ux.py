@@ -240,3 +240,16 @@ def test_no_message_writes_a_range_with_a_dash():
     found = [f"{p.name}: {line.strip()}" for p in root.rglob("*.py")
              for line in p.read_text(encoding="utf-8").splitlines() if dashed.search(line)]
     assert found == []
+
+
+@pytest.mark.parametrize("args", [
+    ["--lines", "1000000000"], ["--dof", "100000"], ["--system", "grid", "--grid", "1000", "1000"],
+    ["--noise", "nan"], ["--fmax", "inf"], ["--excitation", "ambient", "--duration", "1e9"]],
+    ids=["lines", "dof", "grid", "nan", "inf", "duration"])
+def test_simulate_refuses_what_would_take_minutes_or_gigabytes(tmp_path, args):
+    """A billion lines reached 23 GB before the system killed it; nan ended in a traceback."""
+    out = tmp_path / "x.h5"
+    result = cli("simulate", out, *args)
+    assert result.exit_code == 2, result.output
+    assert len(result.stderr.splitlines()) == 1, result.stderr
+    assert not out.exists()

@@ -191,6 +191,9 @@ def test_read_accepts_missing_format_version_and_quantity(tmp_path):
 
     data = read_frf(write_valid(tmp_path / "bare.h5", strip))
     assert data.quantity == "displacement"
+    # the report's input attributes say it was assumed (docs/frf-file.md)
+    assert "assumed displacement" in data.attributes["quantity_source"]
+    assert "quantity_source" not in read_frf(write_valid(tmp_path / "full.h5")).attributes
 
 
 def test_read_accepts_complex64_and_fixed_length_strings(tmp_path):

@@ -66,6 +66,24 @@ def refused(reader, path: Path, *words: str) -> str:
 # ------------------------------------------------------------------------------- UFF
 
 
+def test_uff_cut_inside_a_data_set_is_refused(tmp_path):
+    """pyuff dropped a set cut short (a copy interrupted mid-file), and its channel with it."""
+    whole = write_uff(tmp_path / "whole.uff", [
+        uff_set((k, 3), (1, 3), frf_values(k)) for k in (1, 2)])
+    text = whole.read_bytes()
+    cut = tmp_path / "cut.uff"
+    cut.write_bytes(text[: int(0.8 * len(text))])
+    refused(read_uff, cut, "truncated")
+    assert read_uff(whole).frf.shape[1] == 2
+
+
+@pytest.mark.parametrize("label", ["rad/s", "RPM", "kHz"])
+def test_uff_frequency_axis_not_in_hz_is_refused(tmp_path, label):
+    path = write_uff(tmp_path / "units.uff", [
+        uff_set((1, 3), (1, 3), frf_values(0), abscissa_axis_units_lab=label)])
+    refused(read_uff, path, "data set 1", "not in Hz")
+
+
 def test_uff_roving_hammer(tmp_path):
     values = [frf_values(j) for j in range(3)]
     path = write_uff(tmp_path / "hammer.uff",
@@ -394,6 +412,23 @@ def test_csv_refusals(tmp_path, text, words):
     path = tmp_path / "bad.csv"
     path.write_text(text)
     refused(read_csv, path, *words)
+
+
+@pytest.mark.parametrize(
+    "name", ["frequency (kHz)", "freq_kHz", "f [rad/s]", "omega", "frequency (rpm)"])
+def test_csv_frequency_column_not_in_hz_is_refused(tmp_path, name):
+    """Read as Hz, such a column moved every mode by its unit's factor, without a word."""
+    path = tmp_path / "units.csv"
+    path.write_text(f"{name},H_re,H_im\n1,2,3\n2,2,4\n")
+    refused(read_csv, path, "not in Hz", "convert them to Hz")
+    refused(read_any, path, "not in Hz")
+
+
+@pytest.mark.parametrize("name", ["frequency", "Frequency (Hz)", "freq_Hz", "f [Hz]", "Hz"])
+def test_csv_frequency_column_in_hz_is_read(tmp_path, name):
+    path = tmp_path / "units.csv"
+    path.write_text(f"{name},H_re,H_im\n1,2,3\n2,2,4\n")
+    np.testing.assert_array_equal(read_csv(path).frequency, [1.0, 2.0])
 
 
 def test_csv_refuses_binary_file(tmp_path):

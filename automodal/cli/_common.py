@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
+import errno
 import os
 import sys
 import traceback
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -45,12 +46,30 @@ def exit_on_error(debug: bool = False) -> Iterator[None]:
     except KeyboardInterrupt:
         click.echo("automodal: interrupted", err=True)
         sys.exit(130)
-    except Exception as exc:  # noqa: BLE001 - the CLI boundary
+    except OSError as exc:
+        if exc.errno not in _WRITE_REFUSALS:
+            _internal(exc, debug)
         if debug:
             traceback.print_exc()
-        msg = " ".join(str(exc).split()) or type(exc).__name__
-        click.echo(f"automodal: internal error: {type(exc).__name__}: {msg}", err=True)
-        sys.exit(EXIT_INTERNAL)
+        where = f"{exc.filename}: " if exc.filename else ""
+        click.echo(f"automodal: error: {where}cannot write: {exc.strerror or exc}", err=True)
+        sys.exit(EXIT_INPUT)
+    except Exception as exc:  # noqa: BLE001 - the CLI boundary
+        _internal(exc, debug)
+
+
+_WRITE_REFUSALS = (errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EFBIG)
+"""Errors of a write that the machine, not automodal, caused (a full disk or quota, a
+read-only file system, a file too large for it): exit 2 with one line, as for a bad input."""
+
+
+def _internal(exc: BaseException, debug: bool) -> None:
+    """Exit 1 with one line naming the unexpected exception (its traceback with ``debug``)."""
+    if debug:
+        traceback.print_exc()
+    msg = " ".join(str(exc).split()) or type(exc).__name__
+    click.echo(f"automodal: internal error: {type(exc).__name__}: {msg}", err=True)
+    sys.exit(EXIT_INTERNAL)
 
 
 def check_output_folder(path: str | os.PathLike[str], what: str) -> None:
@@ -76,6 +95,40 @@ def check_output_folder(path: str | os.PathLike[str], what: str) -> None:
         problem = (f"the {what}'s folder is not writable" if folder == parent
                    else f"cannot make the {what}'s folder: {folder} is not writable")
         raise InputError(problem, os.fspath(path))
+
+
+def check_outputs_spare_inputs(
+    outputs: Iterable[str | os.PathLike[str] | None],
+    inputs: Iterable[str | os.PathLike[str] | None],
+) -> None:
+    """Refuse, before any work, an output that is one of the command's inputs: writing it
+    would replace that file (``identify in.h5 -o in.h5`` turned the FRF file into a report).
+
+    Two paths are the same file when they resolve to it (links, ``..``, relative paths);
+    ``None`` entries are skipped.
+
+    Raises
+    ------
+    InputError
+        Naming the output and the input it would replace.
+    """
+    sources = [src for src in inputs if src is not None]
+    for out in outputs:
+        if out is None:
+            continue
+        for src in sources:
+            if _same_file(out, src):
+                raise InputError(f"is also an input ({os.fspath(src)}), which writing it would"
+                                 " replace: choose another output", os.fspath(out))
+
+
+def _same_file(a: str | os.PathLike[str], b: str | os.PathLike[str]) -> bool:
+    """Whether ``a`` and ``b`` name the same file (the same resolved path when either does
+    not exist yet)."""
+    try:
+        return os.path.samefile(a, b)
+    except OSError:
+        return os.path.realpath(a) == os.path.realpath(b)
 
 
 def debug_option(func: Callable) -> Callable:

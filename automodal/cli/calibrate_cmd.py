@@ -6,7 +6,12 @@ from pathlib import Path
 
 import click
 
-from automodal.cli._common import check_output_folder, debug_option, exit_on_error
+from automodal.cli._common import (
+    check_output_folder,
+    check_outputs_spare_inputs,
+    debug_option,
+    exit_on_error,
+)
 from automodal.errors import InputError
 
 
@@ -55,6 +60,11 @@ def calibrate(frf_path: str, model_path: str, output: Path, seed: int, n_bootstr
         if output.suffix.lower() != ".json":
             raise InputError("the result must be a .json file", output)
         check_output_folder(output, "result")
+        check_outputs_spare_inputs([output], [frf_path, model_path])
+        if plot_dir:
+            from automodal.cli.plot_cmd import check_figure_folder
+
+            check_figure_folder(plot_dir)  # before the work, as identify --plot
         from automodal.app.calibrate import (
             CalibrationSettings,
             calibrate_file,

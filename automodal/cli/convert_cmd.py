@@ -9,6 +9,7 @@ import click
 
 from automodal.cli._common import (
     check_output_folder,
+    check_outputs_spare_inputs,
     checked_test_date,
     debug_option,
     exit_on_error,
@@ -98,6 +99,7 @@ def convert(input_paths: tuple[str, ...], output: Path, geometry: str | None,
         if output.suffix.lower() not in OUTPUT_SUFFIXES:
             raise InputError("the output must be an FRF file with suffix .h5 or .hdf5", output)
         check_output_folder(output, "FRF file")
+        check_outputs_spare_inputs([output], [*input_paths, geometry])
         for input_path in input_paths:
             if Path(input_path).is_dir():
                 raise InputError("is a folder, not an input file", input_path)

@@ -6,7 +6,12 @@ from pathlib import Path
 
 import click
 
-from automodal.cli._common import check_output_folder, debug_option, exit_on_error
+from automodal.cli._common import (
+    check_output_folder,
+    check_outputs_spare_inputs,
+    debug_option,
+    exit_on_error,
+)
 
 
 @click.command(
@@ -60,6 +65,7 @@ def design(band: tuple[float, float], n_lines: int, modes: tuple[str, ...],
         for out in outputs:
             design_suffix(out)
             check_output_folder(out, "lines file")
+        check_outputs_spare_inputs(outputs, [modes_file])
         d, left = make_design(band, n_lines, modes, modes_file, rule, uncertainty / 100.0)
         for out in outputs:
             write_design(out, d, band)

@@ -6,7 +6,12 @@ from pathlib import Path
 
 import click
 
-from automodal.cli._common import check_output_folder, debug_option, exit_on_error
+from automodal.cli._common import (
+    check_output_folder,
+    check_outputs_spare_inputs,
+    debug_option,
+    exit_on_error,
+)
 
 
 @click.command(
@@ -46,6 +51,7 @@ def export(report_path: str, output: Path, polar: bool, geometry: str | None, qu
 
         export_suffix(output)  # refused before the report is read
         check_output_folder(output, "export file")
+        check_outputs_spare_inputs([output], [report_path, geometry])
         from automodal.io.report import load_report
 
         report = load_report(report_path)

@@ -18,6 +18,7 @@ from automodal.cli._common import (
     EXIT_OK,
     REPORT_SUFFIXES,
     check_output_folder,
+    check_outputs_spare_inputs,
     debug_option,
     exit_on_error,
     threshold_options,
@@ -164,8 +165,9 @@ def _run_batch(input_path: str, outputs: tuple[str, ...], settings: Settings,
 @click.option("--block-rows", type=click.IntRange(2, 10000), default=None, metavar="Q",
               help="At least Q block rows (2-10000) in the reference model and its "
               "replicates (default: automatic, ceil(1.2 n / r) + 1 for n states and r output "
-              "directions above the noise). Many sensors on close modes need more "
-              "(docs/method.md 1, 'Known limit'); slower.")
+              "directions above the noise; a band whose refinement cannot confirm a physical mode "
+              "is analysed again at the order scan's rows). Many sensors on close modes may "
+              "need more (docs/method.md 1); slower.")
 @click.option("--one-band", is_flag=True,
               help="Identify the band with one model even when it is costly (by default a "
               "band whose one model would be slow is split into sub-bands at the valleys "
@@ -273,6 +275,7 @@ def identify(
             raise InputError("--dask-scheduler is for batch runs (a folder or a glob as INPUT)")
         if not batch:
             _check_outputs(outputs)
+            check_outputs_spare_inputs(outputs, [input_path, baseline_path, geometry_path])
         if plot_dir:
             from automodal.cli.plot_cmd import check_figure_folder
 

@@ -7,7 +7,12 @@ from typing import TYPE_CHECKING
 
 import click
 
-from automodal.cli._common import check_output_folder, debug_option, exit_on_error
+from automodal.cli._common import (
+    check_output_folder,
+    check_outputs_spare_inputs,
+    debug_option,
+    exit_on_error,
+)
 from automodal.errors import InputError
 
 if TYPE_CHECKING:
@@ -90,6 +95,7 @@ def plot(report_path: str, output: str | None, geometry: str | None, dpi: int,
             check_figure_folder(out)
         else:
             _check_output(out)
+            check_outputs_spare_inputs([out], [report_path, geometry])
         from automodal.io.history import is_history_file
 
         if is_history_file(report_path):

@@ -11,6 +11,7 @@ from automodal.cli._common import (
     EXIT_MONITORING,
     REPORT_SUFFIXES,
     check_output_folder,
+    check_outputs_spare_inputs,
     debug_option,
     exit_on_error,
     threshold_options,
@@ -78,6 +79,7 @@ def track(reports: tuple[str, ...], output: str, baseline_path: str | None, quie
     with exit_on_error(debug):
         out = Path(output)
         check_output_folder(out, "history file")
+        check_outputs_spare_inputs([out], [*reports, baseline_path])
         from automodal.app.monitoring import history_of_files
         from automodal.io.history import write_history
 

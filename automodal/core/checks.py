@@ -51,7 +51,9 @@ __all__ = [
     "MAX_LINES",
     "MAX_MAGNITUDE",
     "MAX_TREND_DECADES",
+    "MAX_TOP_FREQUENCY_HZ",
     "MIN_MAGNITUDE",
+    "MIN_TOP_FREQUENCY_HZ",
     "OUTLIER_DECADES",
     "WARN_TREND_DECADES",
     "decimate",
@@ -77,6 +79,13 @@ MAX_MAGNITUDE = 1e100
 """Largest FRF magnitude accepted: the identification sums squares of the data (over up to
 2^26 values), which must stay far from the overflow at 1.8e308. No unit system puts a
 measured FRF near this; rescaling the units brings such data into range."""
+
+MIN_TOP_FREQUENCY_HZ = 1e-6
+"""Lowest top line of a band accepted (a period of 11 days): below it the frequencies are
+not in Hz."""
+
+MAX_TOP_FREQUENCY_HZ = 1e12
+"""Highest top line of a band accepted (1 THz): above it the frequencies are not in Hz."""
 
 MIN_MAGNITUDE = 1e-100
 """A channel (or a line) whose largest magnitude is below this, or zero, carries no
@@ -159,6 +168,7 @@ def prepare(
     freq = np.asarray(freq, dtype=float)
     H = np.asarray(H, dtype=complex)
     freq, H = decimate(freq, H, MAX_LINES, warnings)
+    _check_frequency_scale(freq, source)
     _check_magnitude(H, "FRF", source)
     if data.records is not None:
         _check_magnitude(data.records, "repeated records' FRF", source)
@@ -181,6 +191,18 @@ def prepare(
         warnings.append(f"the band's {edge} edge ({f_edge:g} Hz) is on a resonance peak: a "
                         "mode there may be missed or poorly estimated; widen the band")
     return data, freq, H, receptance
+
+
+def _check_frequency_scale(freq: np.ndarray, source: str | None) -> None:
+    """Refuse a band whose top line lies outside [:data:`MIN_TOP_FREQUENCY_HZ`,
+    :data:`MAX_TOP_FREQUENCY_HZ`]: frequencies not in Hz (the bilinear map's scale, the
+    inverse of the band's frequencies, overflows beyond them: lines scaled by 1e200 or
+    1e-200 ended in a failed SVD)."""
+    top = float(freq[-1]) if freq.size else 0.0
+    if not MIN_TOP_FREQUENCY_HZ <= top <= MAX_TOP_FREQUENCY_HZ:
+        raise InputError(f"the band's top line is at {top:.3g} Hz, outside the"
+                         f" [{MIN_TOP_FREQUENCY_HZ:g}, {MAX_TOP_FREQUENCY_HZ:g}] Hz of"
+                         " vibration tests: give the frequencies in Hz", source)
 
 
 def _check_magnitude(H: np.ndarray, what: str, source: str | None) -> None:

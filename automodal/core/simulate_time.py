@@ -456,6 +456,7 @@ def simulate_time_test(
     n_hits: int = 5,
     pulse_width: float | None = None,
     hold: str = "foh",
+    max_values: int | None = None,
 ) -> tuple[TimeSeries, Modes, TimePlan]:
     """A synthetic time test of a known system, and its exact modes.
 
@@ -491,6 +492,8 @@ def simulate_time_test(
         Width of a hammer pulse in s; default :func:`default_pulse_width`.
     hold : {"foh", "zoh"}
         The force between samples (:func:`discretise`).
+    max_values : int, optional
+        Most samples (over all channels) to simulate; more is refused before any work.
 
     Returns
     -------
@@ -506,8 +509,8 @@ def simulate_time_test(
     Raises
     ------
     ValueError
-        On a bad argument (see :func:`plan`), more than one hammer DOF, or a negative
-        noise level.
+        On a bad argument (see :func:`plan`), more than one hammer DOF, a negative
+        noise level, or more than ``max_values`` samples.
     """
     _check_excitation(excitation)
     n = system.n_dof
@@ -522,6 +525,12 @@ def simulate_time_test(
     modes = exact_modes(system, out, inp)
     fs = default_sample_rate(system) if sample_rate is None else float(sample_rate)
     time_plan = plan(excitation, modes, fs, duration, n_hits, pulse_width)
+    n_channels = out.size + (0 if excitation == "ambient" else inp.size)
+    if max_values is not None and time_plan.n_samples * n_channels > max_values:
+        raise ValueError(
+            f"{time_plan.n_samples} samples of {n_channels} channels are more than the"
+            f" {max_values} values automodal reads back: shorten the records or lower the"
+            " sample rate")
     if excitation == "hits":
         force = half_sine_hits(time_plan, rng)
     else:

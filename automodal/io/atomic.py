@@ -2,11 +2,18 @@
 
 from __future__ import annotations
 
+import errno
+import io
 import os
 import secrets
+import shutil
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    import h5py
 
 
 @contextmanager
@@ -50,6 +57,41 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
         _remove_quietly(tmp)
         raise
     _fsync_dir(target.parent)
+
+
+@contextmanager
+def hdf5_in_memory(path: str | os.PathLike[str]) -> Iterator[h5py.File]:
+    """An HDF5 file to fill, built in memory and written atomically onto ``path`` when the
+    block succeeds (:func:`atomic_path`).
+
+    For reports and histories, small next to the memory a run holds. HDF5 writing into a
+    file on a full disk crashed the process (a segmentation fault, the temporary file left
+    behind, on a 64 KiB file system); Python's write of the finished image raises
+    ``OSError`` (``ENOSPC``) instead, which the commands report in one line.
+    """
+    import h5py
+
+    buffer = io.BytesIO()
+    with h5py.File(buffer, "w") as f:
+        yield f
+    with atomic_path(path) as tmp:
+        tmp.write_bytes(buffer.getbuffer())
+
+
+def check_free_space(path: str | os.PathLike[str], n_bytes: int) -> None:
+    """Raise ``OSError`` (``ENOSPC``) when the folder of ``path`` (or the nearest existing
+    one above it) has less than ``n_bytes`` and a mebibyte free: a large HDF5 file is
+    written straight to disk, and HDF5 crashes when the disk fills under it."""
+    folder = Path(os.path.abspath(path)).parent
+    while not folder.exists() and folder != folder.parent:
+        folder = folder.parent
+    try:
+        free = shutil.disk_usage(folder).free
+    except OSError:
+        return
+    if free < int(n_bytes) + (1 << 20):
+        raise OSError(errno.ENOSPC, f"{os.strerror(errno.ENOSPC)} ({free} bytes free, about"
+                      f" {int(n_bytes)} needed)", os.fspath(path))
 
 
 def _fsync_file(path: Path) -> None:

@@ -208,6 +208,24 @@ def time_unit(name: str) -> float | None:
     return _TIME_UNITS[(match.group(2) or "").lower()]
 
 
+_OTHER_FREQUENCY_UNIT = re.compile(
+    r"(?<![a-z])(khz|mhz|ghz|rad|rpm|cpm|omega)(?![a-z])|/\s*min\b", re.IGNORECASE)
+"""Units (or names) of a frequency axis that are not Hz: kHz and larger, rad/s, omega,
+revolutions or cycles per minute."""
+
+
+def frequency_unit_problem(label: str) -> str | None:
+    """What is wrong with a frequency axis labelled ``label`` (a column name, a UFF axis
+    label), or None: automodal reads frequencies in Hz, and a label naming another unit
+    (``frequency (kHz)``, ``freq_kHz``, ``f [rad/s]``, ``omega``, ``rpm``) would otherwise
+    be read as Hz, every mode off by that factor."""
+    text = label.strip().replace("_", " ")
+    if not _OTHER_FREQUENCY_UNIT.search(text):
+        return None
+    return (f"the frequency axis {label.strip()!r} is not in Hz: automodal reads frequencies"
+            " in Hz, so convert them to Hz first")
+
+
 def time_axis(is_time: list[bool], labels: list[str], what: str) -> tuple[int | None, list[int]]:
     """Which position of a file's columns is its time axis, and which are channels.
 

@@ -19,7 +19,7 @@ import h5py
 import numpy as np
 
 from automodal.frfdata import FRFData, quantity_problem
-from automodal.io.atomic import atomic_path
+from automodal.io.atomic import atomic_path, check_free_space
 from automodal.io.hdf5 import (
     check_shape,
     complex_array,
@@ -101,9 +101,19 @@ def _read(path: Path, source: str) -> FRFData:
             output_directions=outputs["direction"],
             input_directions=inputs["direction"],
             output_xyz=_read_xyz(f, n_outputs),
-            attributes=_checked_attributes(free_attributes(f.attrs)),
+            attributes=_stated_quantity(_checked_attributes(free_attributes(f.attrs)),
+                                        "quantity" in f.attrs),
             source=source,
         )
+
+
+def _stated_quantity(attributes: dict, stated: bool) -> dict:
+    """``attributes`` with ``quantity_source`` saying that the quantity was assumed, when
+    the file does not state it (as the other readers say; ``docs/frf-file.md``)."""
+    if not stated and "quantity_source" not in attributes:
+        attributes["quantity_source"] = ("not stated in the FRF file; assumed displacement"
+                                         " (receptance)")
+    return attributes
 
 
 def _read_frf_array(f: h5py.File) -> np.ndarray:
@@ -239,6 +249,8 @@ def write_frf(path: str | os.PathLike[str], data: FRFData,
     if time is not None and (list(time.output_names) != list(data.output_names) or (
             time.inputs is not None and list(time.input_names) != list(data.input_names))):
         raise ValueError("the time records' channels are not the FRFs' channels")
+    check_free_space(path, sum(np.asarray(a).nbytes for a in (
+        data.frequency, data.frf, data.coherence, data.records) if a is not None))
     with atomic_path(path) as tmp, h5py.File(tmp, "w") as f:
         write_header(f, data.attributes, data.quantity)
         f.create_dataset("frequency", data=np.asarray(data.frequency, dtype=np.float64))

@@ -34,7 +34,7 @@ import numpy as np
 
 from automodal import __version__
 from automodal.errors import InputError
-from automodal.io.atomic import atomic_path
+from automodal.io.atomic import hdf5_in_memory
 from automodal.report_model import utc_now
 from automodal.tracking import History, Thresholds
 
@@ -70,7 +70,7 @@ def write_history(path: str | os.PathLike[str], history: History) -> Path:
     """
     target = Path(path)
     text = h5py.string_dtype()
-    with atomic_path(target) as tmp, h5py.File(tmp, "w") as f:
+    with hdf5_in_memory(target) as f:
         f.attrs["format"] = FORMAT_NAME
         f.attrs["version"] = FORMAT_VERSION
         f.attrs["automodal_version"] = __version__

@@ -28,7 +28,7 @@ import numpy as np
 
 from automodal.errors import InputError
 from automodal.frfdata import FRFData
-from automodal.io.atomic import atomic_path
+from automodal.io.atomic import atomic_path, hdf5_in_memory
 from automodal.report_model import (
     FORMAT_NAME,
     FORMAT_VERSION,
@@ -243,8 +243,7 @@ def save_report(
         return
     model = Report.coerce(report)
     arrays = None if frf is None else _frf_for_report(model, frf)
-    with atomic_path(path) as tmp:
-        _write_hdf5(tmp, model, poles, arrays, stabilization)
+    _write_hdf5(path, model, poles, arrays, stabilization)
 
 
 def _format_of(path: str | os.PathLike[str]) -> str:
@@ -300,20 +299,20 @@ def _frf_for_report(report: Report, frf: FRFArrays) -> dict[str, np.ndarray]:
 
 
 def _write_hdf5(
-    path: Path,
+    path: str | os.PathLike[str],
     report: Report,
     poles: PoleTable | None,
     frf: dict[str, np.ndarray] | None = None,
     stabilization: StabilizationPoles | None = None,
 ) -> None:
     """The report in the HDF5 layout of ``docs/report.md``, plus its JSON text in
-    ``report_json``."""
+    ``report_json``, written atomically (built in memory: :func:`hdf5_in_memory`)."""
     import h5py
 
     content = report.to_dict()
     text = json.dumps(content, ensure_ascii=False, allow_nan=False)
     strings = h5py.string_dtype()
-    with h5py.File(path, "w") as f:
+    with hdf5_in_memory(path) as f:
         for key, value in report.header.to_dict().items():
             f.attrs[key] = value
         f.attrs["settings"] = json.dumps(content["settings"], ensure_ascii=False)

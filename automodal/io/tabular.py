@@ -40,7 +40,14 @@ import numpy as np
 
 from automodal.errors import InputError
 from automodal.frfdata import QUANTITIES, FRFData, quantity_problem
-from automodal.io.channels import Channels, TimeOptions, rate_from_time, time_axis, time_unit
+from automodal.io.channels import (
+    Channels,
+    TimeOptions,
+    frequency_unit_problem,
+    rate_from_time,
+    time_axis,
+    time_unit,
+)
 from automodal.io.limits import (
     MAX_TEXT_BYTES,
     check_not_real_valued,
@@ -178,6 +185,8 @@ def _read_table(path: Path, source: str, options: TimeOptions | None) -> FRFData
                          source)
     if header is not None and _holds_samples(header, options, source):
         return _samples_table(table, header, stated)
+    if header is not None and (problem := frequency_unit_problem(header[0])):
+        raise InputError(problem, source)
     if n_cols < 3 or n_cols % 2 == 0:
         raise InputError(f"{n_cols} columns; {_CSV_LAYOUT} (an odd number of columns, at "
                          "least 3)", source)

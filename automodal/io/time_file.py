@@ -17,7 +17,7 @@ import h5py
 import numpy as np
 
 from automodal.frfdata import quantity_problem
-from automodal.io.atomic import atomic_path
+from automodal.io.atomic import atomic_path, check_free_space
 from automodal.io.channels import MIN_SAMPLES
 from automodal.io.hdf5 import (
     check_dataset_size,
@@ -179,6 +179,8 @@ def write_time(path: str | os.PathLike[str], ts: TimeSeries) -> None:
     if problem:
         raise ValueError(problem)
     strings = h5py.string_dtype()
+    check_free_space(path, sum(np.asarray(a).nbytes for a in (ts.outputs, ts.inputs)
+                               if a is not None))
     with atomic_path(path) as tmp, h5py.File(tmp, "w") as f:
         write_header(f, ts.attributes, quantity)
         write_time_group(f, ts)

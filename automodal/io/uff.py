@@ -22,7 +22,7 @@ import numpy as np
 
 from automodal.errors import InputError
 from automodal.frfdata import FRFData
-from automodal.io.channels import Channels, rate_from_time
+from automodal.io.channels import Channels, frequency_unit_problem, rate_from_time
 from automodal.io.limits import check_not_real_valued, check_text_size
 from automodal.io.refusal import describe, read_refusing
 from automodal.io.uff_geometry import Nodes, nodes_of_file, open_uff
@@ -249,6 +249,9 @@ def _check_set(number: int, dset: dict[str, Any], source: str) -> None:
     if abscissa in _NOT_FREQUENCY_ABSCISSAS:
         raise InputError(f"data set {number} has a {_NOT_FREQUENCY_ABSCISSAS[abscissa]} "
                          f"abscissa (data type {abscissa}), not frequency", source)
+    problem = frequency_unit_problem(str(dset.get("abscissa_axis_units_lab", "") or ""))
+    if problem:
+        raise InputError(f"data set {number}: {problem}", source)
     denominator = int(dset.get("orddenom_spec_data_type", 0))
     if denominator in _MOTION_TYPES:
         raise InputError(f"data set {number} is per unit {_MOTION_TYPES[denominator]} "

@@ -12,6 +12,7 @@ that can be checked. A node given twice (in one dataset or across datasets) is r
 from __future__ import annotations
 
 import os
+import re
 from pathlib import Path
 from typing import Any
 
@@ -78,6 +79,9 @@ def open_uff(path: Path, source: str) -> tuple[Any, list[int]]:
     InputError
         If pyuff cannot read it (one line naming ``source``).
     """
+    if not _ends_with_delimiter(path):
+        raise InputError("the file ends inside a data set (its last line is not the '-1' that"
+                         " closes one): it is truncated; write it again", source)
     try:
         import pyuff
 
@@ -85,6 +89,21 @@ def open_uff(path: Path, source: str) -> tuple[Any, list[int]]:
         return uff, [int(t) for t in uff.get_set_types()]
     except Exception as exc:  # noqa: BLE001 - pyuff raises bare Exception
         raise InputError(f"cannot read as a UFF file: {describe(exc)}", source) from exc
+
+
+def _ends_with_delimiter(path: Path) -> bool:
+    """Whether a file that opens with a data set's ``-1`` delimiter also ends with one,
+    which closes every data set: pyuff dropped a set cut short (a copy interrupted
+    mid-file) without a word, and its channels with it."""
+    with open(path, "rb") as fh:
+        if not fh.read(256).lstrip().startswith(b"-1"):
+            return True  # not opened by a delimiter: pyuff says what it is
+        fh.seek(0, os.SEEK_END)
+        size = fh.tell()
+        fh.seek(max(0, size - 256))
+        tail = fh.read()
+    # a binary set's closing delimiter follows its data on the same line
+    return re.search(rb"(^|\s)-1$", tail.rstrip(b" \t\r\n\x00\x1a")) is not None
 
 
 def nodes_of_file(uff: Any, types: list[int], source: str) -> Nodes | None:
