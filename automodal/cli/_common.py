@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING
 import click
 
 from automodal.errors import InputError
+from automodal.io.atomic import nearest_existing_folder
 
 if TYPE_CHECKING:
     from automodal.tracking import Thresholds
@@ -58,7 +59,8 @@ def exit_on_error(debug: bool = False) -> Iterator[None]:
         _internal(exc, debug)
 
 
-_WRITE_REFUSALS = (errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EFBIG)
+_WRITE_REFUSALS = tuple(getattr(errno, name) for name in ("ENOSPC", "EDQUOT", "EROFS", "EFBIG")
+                        if hasattr(errno, name))
 """Errors of a write that the machine, not automodal, caused (a full disk or quota, a
 read-only file system, a file too large for it): exit 2 with one line, as for a bad input."""
 
@@ -85,9 +87,7 @@ def check_output_folder(path: str | os.PathLike[str], what: str) -> None:
         Naming ``path`` (``what`` says which output it is, e.g. ``"report"``).
     """
     parent = Path(os.path.abspath(path)).parent
-    folder = parent
-    while not folder.exists() and folder != folder.parent:
-        folder = folder.parent
+    folder = nearest_existing_folder(path)
     if not folder.is_dir():
         raise InputError(f"cannot make the {what}'s folder: {folder} is not a folder",
                          os.fspath(path))

@@ -82,16 +82,22 @@ def check_free_space(path: str | os.PathLike[str], n_bytes: int) -> None:
     """Raise ``OSError`` (``ENOSPC``) when the folder of ``path`` (or the nearest existing
     one above it) has less than ``n_bytes`` and a mebibyte free: a large HDF5 file is
     written straight to disk, and HDF5 crashes when the disk fills under it."""
-    folder = Path(os.path.abspath(path)).parent
-    while not folder.exists() and folder != folder.parent:
-        folder = folder.parent
     try:
-        free = shutil.disk_usage(folder).free
+        free = shutil.disk_usage(nearest_existing_folder(path)).free
     except OSError:
         return
     if free < int(n_bytes) + (1 << 20):
         raise OSError(errno.ENOSPC, f"{os.strerror(errno.ENOSPC)} ({free} bytes free, about"
                       f" {int(n_bytes)} needed)", os.fspath(path))
+
+
+def nearest_existing_folder(path: str | os.PathLike[str]) -> Path:
+    """The folder of ``path``, or the nearest one above it that exists (what would hold the
+    folders still to be made; it may be a file where a folder is expected)."""
+    folder = Path(os.path.abspath(path)).parent
+    while not folder.exists() and folder != folder.parent:
+        folder = folder.parent
+    return folder
 
 
 def _fsync_file(path: Path) -> None:
