@@ -249,8 +249,9 @@ def write_frf(path: str | os.PathLike[str], data: FRFData,
     if time is not None and (list(time.output_names) != list(data.output_names) or (
             time.inputs is not None and list(time.input_names) != list(data.input_names))):
         raise ValueError("the time records' channels are not the FRFs' channels")
-    check_free_space(path, sum(np.asarray(a).nbytes for a in (
-        data.frequency, data.frf, data.coherence, data.records) if a is not None))
+    arrays = (data.frequency, data.frf, data.coherence, data.records,
+              None if time is None else time.outputs, None if time is None else time.inputs)
+    check_free_space(path, sum(np.asarray(a).nbytes for a in arrays if a is not None))
     with atomic_path(path) as tmp, h5py.File(tmp, "w") as f:
         write_header(f, data.attributes, data.quantity)
         f.create_dataset("frequency", data=np.asarray(data.frequency, dtype=np.float64))
