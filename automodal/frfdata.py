@@ -97,8 +97,9 @@ class FRFData:
             1-D or empty, with non-finite, negative or not strictly increasing lines; the
             FRFs not 3-D with one line per frequency, empty, or not finite; coherence or
             records of another shape than the FRFs (records with one more, first, axis),
-            coherence outside [0, 1], records not finite; names, nodes, directions or
-            coordinates not one per channel; an unknown quantity.
+            coherence outside [0, 1] or 0 everywhere, records not finite or not on the
+            FRFs' scale; names, nodes, directions or coordinates not one per channel, a
+            name given twice, coordinates not finite; an unknown quantity.
         """
         _raise_first(_SHAPE_RULES + _VALUE_RULES, self)
 
@@ -247,6 +248,76 @@ def _per_channel(d: FRFData) -> str | None:
     return None
 
 
+def _unique_names(d: FRFData) -> str | None:
+    """Channel names identify the channels in reports (noise levels, shapes): each once."""
+    for side, names in (("output", d.output_names), ("input", d.input_names)):
+        seen: set[str] = set()
+        for name in names:
+            if name in seen:
+                return (f"the {side} name {name!r} is given to several channels: the report "
+                        f"tells channels by name, so give each {side} its own")
+            seen.add(name)
+    return None
+
+
+def _coordinates_finite(d: FRFData) -> str | None:
+    xyz = d.output_xyz
+    if xyz is None:
+        return None
+    n_bad = int(np.count_nonzero(~np.isfinite(np.asarray(xyz, dtype=float))))
+    if n_bad:
+        return (f"the output coordinates have {n_bad} non-finite value(s): give every "
+                "sensor's coordinates, or none")
+    return None
+
+
+def _coherence_not_all_zero(d: FRFData) -> str | None:
+    """A coherence of 0 says that no response follows the force, which contradicts an FRF
+    that is not zero (H1 = S_yu / S_uu is 0 where the coherence is): a placeholder."""
+    c = d.coherence
+    if c is not None and not np.any(c > 0) and np.any(d.frf != 0):
+        return ("the coherence is 0 at every line and entry, which no measured FRF has "
+                "(a placeholder?): leave the coherence out")
+    return None
+
+
+RECORD_SCALE_LIMIT = 0.5
+""":func:`_records_scale`: records whose median ratio to the FRF is further than this from 1
+are refused. The median of measurements of ``H`` over ``H`` is 1 whatever their noise; a
+different unit, sign or sign convention (factors such as 2 pi, 9.81, 1000, -1, or a conjugate)
+moves it by more than this."""
+
+_SCALE_SAMPLE = 1 << 16
+"""Ratios at most :func:`_records_scale` takes the median of (evenly spread), so that its
+cost does not grow with the records."""
+
+
+def _records_scale(d: FRFData) -> str | None:
+    """Repeated records must be measurements of the FRF: in its units and sign convention.
+
+    Each record is ``X_r = H + E_r`` with an error symmetric about 0 (noise of a random
+    phase, or ``N_r / U_r`` for the ratio records of H1). So ``X_r / H = 1 + E_r / H`` is
+    symmetric about 1 at every line and entry, and so is the pool of all of them: the
+    medians of its real and imaginary parts are 1 and 0, however noisy the records."""
+    R = d.records
+    if R is None:
+        return None
+    H = np.broadcast_to(d.frf, R.shape).reshape(-1)
+    X = R.reshape(-1)
+    step = max(1, X.size // _SCALE_SAMPLE)
+    H, X = H[::step], X[::step]
+    ok = H != 0
+    if not np.any(ok):
+        return None
+    ratio = X[ok] / H[ok]
+    c = complex(np.median(ratio.real), np.median(ratio.imag))
+    if abs(c - 1.0) <= RECORD_SCALE_LIMIT:
+        return None
+    return (f"the repeated records are about {abs(c):.3g} times the FRF at a phase of "
+            f"{np.degrees(np.angle(c)):.0f} degrees, so they are not its measurements: store "
+            "them in the FRF's units and sign convention, or leave them out")
+
+
 _SHAPE_RULES: tuple[Rule, ...] = (_frequency_shape, _frf_shape, _coherence_shape,
                                   _records_shape)
 """Rules needed before the channel counts mean anything."""
@@ -257,6 +328,10 @@ _VALUE_RULES: tuple[Rule, ...] = (
     lambda d: _finite(d.records, "repeated records"),
     _coherence_values,
     _per_channel,
+    _unique_names,
+    _coordinates_finite,
+    _coherence_not_all_zero,
+    _records_scale,
     lambda d: quantity_problem(d.quantity),
 )
 """Rules on the values, the channels' metadata and the quantity."""

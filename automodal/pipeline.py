@@ -39,6 +39,7 @@ from automodal.core import (
     checks,
     order,
     parallel,
+    physicalness,
     reference,
     replicates,
     stabilization,
@@ -51,6 +52,7 @@ from automodal.core import (
 from automodal.core.bilinear import default_scale, to_unit_circle
 from automodal.core.clustering import TRASHBOX
 from automodal.core.from_time import as_frfdata
+from automodal.core.modal import pole_damping_ratio
 from automodal.core.pole_map import PoleMap
 from automodal.core.reciprocity import apply_reciprocity
 from automodal.core.summary import RESOLUTION_DECAY, local_spacing, resolved
@@ -188,6 +190,13 @@ def prepare(
                         " bootstrap intervals")
     H, reciprocal = apply_reciprocity(H, warnings)
     pole_map = pole_map_of(data)
+    if pole_map.shift > 2.0 * np.pi * freq[-1]:
+        # the window adds a / omega to every damping ratio: more than critical damping at
+        # every line of the band, where no resonance would be left to identify
+        raise InputError(
+            f"attribute window_decay_per_s = {pole_map.shift:g} 1/s is more than the band's"
+            f" top angular frequency ({2.0 * np.pi * freq[-1]:.4g} rad/s): such a window"
+            " would overdamp every mode; give the window's decay in 1/s", data.source)
     try:
         omega = pole_map.model_omega(2.0 * np.pi * freq)
     except ValueError as exc:
@@ -616,12 +625,14 @@ def _analyse(
     tell(progress, "summary")
     clusters = reference.cluster_against_reference(ref, reps, s.n_bootstrap, s.threshold)
     snr2 = None
+    params = whitening.mode_parameters(*p.Hs.shape[1:])
     if p.variance is not None:
         snr2 = whitening.mode_snr2(ref.modal, p.z, p.variance, jobs=s.jobs) / dispersion
+        _check_decaying(p, ref, snr2, params, s.zeta_max)
     modes = summary.summarise_clusters(
         clusters.labels, clusters.rho, reps.poles, reps.shapes, reps.replicate,
         clusters.subspaces, ref.modes, p.scales, ref.contribution, s.n_bootstrap,
-        s.min_physicalness, snr2, whitening.mode_parameters(*p.Hs.shape[1:]),
+        s.min_physicalness, snr2, params,
     )
     if _refined(p):
         tell(progress, "refinement")
@@ -630,6 +641,68 @@ def _analyse(
             p.pole_map, s.jobs)
     return _Analysis(ref=ref, dispersion=dispersion, reps=reps, clusters=clusters,
                      modes=modes, warnings=warnings)
+
+
+def _check_decaying(p: Prepared, ref: reference.Reference, snr2: np.ndarray,
+                    params: int, s_zeta_max: float) -> None:
+    """Refuse data whose detected resonances the reference model fits with growing poles.
+
+    Counted (:func:`automodal.core.reference.growing_share`): the modal contributions of
+    the modes that the noise would not give by chance
+    (:func:`automodal.core.physicalness.familywise_threshold`) and whose damping ratio, of
+    either sign, is below ``s_zeta_max``, as for the physical candidates. The contribution,
+    not the SNR^2: the pole-zero pairs of an over-sized model of exact data have an SNR^2
+    of rounding. Most of it on growing model poles, with the conjugate FRF fitting their
+    decaying images better (:func:`_conjugate_fits_better`), means the FRF is in the other
+    sign convention; most of it on poles that only the window decay, added back, makes
+    grow means that decay is larger than the data's.
+
+    Raises
+    ------
+    InputError
+    """
+    detected = snr2 > physicalness.familywise_threshold(params, snr2.size)
+    model_poles = p.pole_map.to_model(ref.modes.poles)
+    # candidates and their mirror images: |zeta| below the largest damping of a mode
+    light = np.abs(pole_damping_ratio(model_poles)) < s_zeta_max
+    weight = np.where(detected & light, ref.contribution, 0.0)
+    share = reference.growing_share(model_poles, weight, p.band_rad_s)
+    if share > reference.GROWING_SHARE_LIMIT and _conjugate_fits_better(p, model_poles[light]):
+        raise InputError(
+            f"{share:.0%} of the FRF's detected resonant response fits poles that grow in"
+            " time: the FRF uses the other sign convention (e^-iwt, the complex conjugate of"
+            " automodal's e^+iwt); store its complex conjugate (docs/frf-file.md)",
+            p.data.source)
+    # the window check: of the detected modes decaying in the data, the share it makes grow
+    weight = np.where(model_poles.real < 0, weight, 0.0)
+    share = reference.growing_share(ref.modes.poles, weight, p.band_rad_s)
+    if p.pole_map.shift > 0 and share > reference.GROWING_SHARE_LIMIT:
+        raise InputError(
+            f"attribute window_decay_per_s = {p.pole_map.shift:g} 1/s is more than the decay"
+            f" of the resonances that make {share:.0%} of the FRF's detected response:"
+            " removing it leaves them growing; give the decay of the window the data were"
+            " taken with", p.data.source)
+
+
+CONJUGATE_EVIDENCE = 1e-3
+""":func:`_conjugate_fits_better`: the false-alarm probability of its F test on noise."""
+
+
+def _conjugate_fits_better(p: Prepared, poles: np.ndarray) -> bool:
+    """Whether the conjugate of the analysed FRF fits the decaying images of the model's
+    ``poles`` clearly better than the FRF does
+    (:func:`automodal.core.synthesis.conjugate_residual_ratio`): its residual at most half,
+    and below the :data:`CONJUGATE_EVIDENCE` quantile of the F distribution that the ratio
+    of two equal noise residuals follows. On noise, a model's detected growing poles (one
+    white-noise SISO FRF of 1000 lines in three had them) are as often decaying in a
+    conjugate's model, and the test passes them."""
+    from scipy.special import fdtri
+
+    power = 0 if p.data.output_only else quantity_power(p.data.quantity)
+    ratio, dof = synthesis.conjugate_residual_ratio(p.omega, p.H, poles, power)
+    if dof <= 0:
+        return False
+    return ratio < min(0.5, float(fdtri(dof, dof, CONJUGATE_EVIDENCE)))
 
 
 def _refined(p: Prepared) -> bool:

@@ -23,12 +23,14 @@ def valid_content(seed: int = 0) -> dict[str, Any]:
     """The arrays and metadata of the valid test file, by HDF5 name."""
     rng = np.random.default_rng(seed)
     shape = (N_FREQ, N_OUT, N_IN)
+    frf = rng.standard_normal(shape) + 1j * rng.standard_normal(shape)
     return {
         "frequency": np.linspace(0.0, 70.0, N_FREQ),
-        "frf": rng.standard_normal(shape) + 1j * rng.standard_normal(shape),
+        "frf": frf,
         "coherence": rng.uniform(0.0, 1.0, shape),
-        "records/frf": rng.standard_normal((N_REC,) + shape)
-        + 1j * rng.standard_normal((N_REC,) + shape),
+        # measurements of the FRF: it plus noise
+        "records/frf": frf + 0.1 * (rng.standard_normal((N_REC,) + shape)
+                                    + 1j * rng.standard_normal((N_REC,) + shape)),
         "outputs/name": ["tip", "middle", "root"],
         "outputs/node": np.array([3, 2, 1]),
         "outputs/direction": ["+Z", "+Z", "-Y"],
@@ -227,5 +229,16 @@ BAD_CASES = [
     bad("names_not_strings", replace("outputs/name", np.arange(N_OUT)), "strings"),
     bad("nodes_not_integers", replace("inputs/node", np.array([1.5, 2.5])), "integers"),
     bad("xyz_shape", replace("outputs/xyz", np.zeros((N_OUT, 2))), "/outputs/xyz"),
+    bad("xyz_nan", replace("outputs/xyz", np.full((N_OUT, 3), np.nan)), "coordinates"),
+    bad("output_names_repeated", replace("outputs/name", ["tip", "tip", "root"]),
+        "several channels"),
+    bad("input_names_repeated", replace("inputs/name", ["hammer", "hammer"]),
+        "several channels"),
+    bad("coherence_zero", replace("coherence", np.zeros((N_FREQ, N_OUT, N_IN))),
+        "0 at every line"),
+    bad("records_scaled", replace("records/frf", 10.0 * np.stack([_FRF] * N_REC)),
+        "not its measurements"),
+    bad("records_conjugate", replace("records/frf", np.conj(np.stack([_FRF] * N_REC))),
+        "not its measurements"),
 ]
 """Every malformed input a reader must refuse."""

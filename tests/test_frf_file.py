@@ -21,12 +21,14 @@ def full_data(seed: int = 1) -> FRFData:
     """An FRFData with every optional field set."""
     rng = np.random.default_rng(seed)
     shape = (12, 2, 3)
+    frf = rng.standard_normal(shape) + 1j * rng.standard_normal(shape)
     return FRFData(
         frequency=np.linspace(1.0, 100.0, shape[0]),
-        frf=rng.standard_normal(shape) + 1j * rng.standard_normal(shape),
+        frf=frf,
         quantity="velocity",
         coherence=rng.uniform(0.0, 1.0, shape),
-        records=rng.standard_normal((5,) + shape) + 1j * rng.standard_normal((5,) + shape),
+        records=frf + 0.1 * (rng.standard_normal((5,) + shape)
+                             + 1j * rng.standard_normal((5,) + shape)),
         output_names=["a1", "a2 (ü)"],
         input_names=["f1", "f2", "f3"],
         output_nodes=np.array([10, 20]),

@@ -24,11 +24,12 @@ def arrays(seed: int = 0) -> dict:
     """The fields of a valid test with every optional array."""
     rng = np.random.default_rng(seed)
     shape = (N_FREQ, N_OUT, N_IN)
+    frf = rng.standard_normal(shape) + 1j * rng.standard_normal(shape)
     return {
         "frequency": np.linspace(0.0, 50.0, N_FREQ),
-        "frf": rng.standard_normal(shape) + 1j * rng.standard_normal(shape),
+        "frf": frf,
         "coherence": rng.uniform(0.0, 1.0, shape),
-        "records": rng.standard_normal((N_REC,) + shape) + 1j,
+        "records": frf + 0.1 * rng.standard_normal((N_REC,) + shape),  # measurements of it
         "output_names": ["a", "b"],
         "input_names": ["u", "v", "w"],
         "output_nodes": np.array([1, 2]),

@@ -447,6 +447,12 @@ def hdf5_layouts(draw: st.DrawFn, mode: str | None = None) -> dict[str, Any]:
     for name, strategy in optional.items():
         if draw(st.integers(0, 4)) == 4:
             datasets[name] = draw(strategy())
+    H = datasets.get("frf")
+    if clean and "records/frf" in datasets and isinstance(H, np.ndarray) and H.ndim == 3:
+        # valid records are measurements of the FRF: it times a little noise
+        noise = datasets["records/frf"]
+        datasets["records/frf"] = (H.astype(complex)[None] * (1.0 + 0.01 * noise / np.maximum(
+            np.abs(noise), 1e-300))).astype(noise.dtype)
     if not clean and draw(st.integers(0, 12)) == 12:  # a dataset where a group belongs,
         name = draw(st.sampled_from(["outputs", "inputs", "records", "records/frf",  # or the
                                      "coherence"]))                                  # reverse

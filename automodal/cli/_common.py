@@ -97,6 +97,24 @@ def check_output_folder(path: str | os.PathLike[str], what: str) -> None:
         raise InputError(problem, os.fspath(path))
 
 
+HDF5_SUFFIXES = (".h5", ".hdf5")
+"""Suffixes of the HDF5 files the commands write (FRF, time and history files)."""
+
+
+def check_hdf5_suffix(path: str | os.PathLike[str], what: str) -> None:
+    """Refuse an HDF5 output named otherwise (``simulate x.json`` wrote HDF5 under a JSON
+    name, which every JSON reader then failed on).
+
+    Raises
+    ------
+    InputError
+        Naming the output and the suffixes allowed.
+    """
+    if Path(path).suffix.lower() not in HDF5_SUFFIXES:
+        raise InputError(f"the {what} is an HDF5 file: name it with the suffix .h5 or .hdf5",
+                         os.fspath(path))
+
+
 def check_outputs_spare_inputs(
     outputs: Iterable[str | os.PathLike[str] | None],
     inputs: Iterable[str | os.PathLike[str] | None],

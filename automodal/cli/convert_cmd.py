@@ -8,6 +8,7 @@ from typing import TYPE_CHECKING
 import click
 
 from automodal.cli._common import (
+    check_hdf5_suffix,
     check_output_folder,
     check_outputs_spare_inputs,
     checked_test_date,
@@ -20,9 +21,6 @@ from automodal.errors import InputError
 
 if TYPE_CHECKING:
     from automodal.frfdata import FRFData
-
-OUTPUT_SUFFIXES = (".h5", ".hdf5")
-
 
 def summary(output: Path, data: FRFData) -> str:
     """One line describing what was written.
@@ -96,8 +94,7 @@ def convert(input_paths: tuple[str, ...], output: Path, geometry: str | None,
     """
     with exit_on_error(debug):
         when = None if test_date is None else checked_test_date(test_date)
-        if output.suffix.lower() not in OUTPUT_SUFFIXES:
-            raise InputError("the output must be an FRF file with suffix .h5 or .hdf5", output)
+        check_hdf5_suffix(output, "FRF file")
         check_output_folder(output, "FRF file")
         check_outputs_spare_inputs([output], [*input_paths, geometry])
         for input_path in input_paths:

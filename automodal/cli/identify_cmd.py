@@ -85,6 +85,10 @@ def _batch_outdir(outputs: tuple[str, ...]) -> Path:
     if out.exists() and not out.is_dir():
         raise InputError("is not a folder: a batch run writes its reports into -o OUTDIR",
                          str(out))
+    if not out.exists() and out.suffix.lower() in REPORT_SUFFIXES:
+        # a report's name, not a folder's: a batch would make a folder called rep.json
+        raise InputError("is the name of one report, but a batch run writes one report per"
+                         " file into a folder: give -o OUTDIR", str(out))
     if not out.exists():
         check_output_folder(out, "output folder")
     elif not os.access(out, os.W_OK | os.X_OK):

@@ -11,6 +11,7 @@ import numpy as np
 from click.core import ParameterSource
 
 from automodal.cli._common import (
+    check_hdf5_suffix,
     check_output_folder,
     checked_test_date,
     debug_option,
@@ -180,6 +181,7 @@ def simulate(output: Path, system_kind: str, dof: int, grid_size: tuple[int, int
     from automodal.io.modes_file import write_modes_json
 
     with exit_on_error(debug):
+        check_hdf5_suffix(output, "FRF file")
         check_output_folder(output, "FRF file")
         when = None if test_date is None else checked_test_date(test_date)
         _check_finite(noise=noise, zeta=zeta, fmin=fmin, fmax=fmax, sample_rate=sample_rate,

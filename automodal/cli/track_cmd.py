@@ -10,6 +10,7 @@ import click
 from automodal.cli._common import (
     EXIT_MONITORING,
     REPORT_SUFFIXES,
+    check_hdf5_suffix,
     check_output_folder,
     check_outputs_spare_inputs,
     debug_option,
@@ -78,6 +79,7 @@ def track(reports: tuple[str, ...], output: str, baseline_path: str | None, quie
     """
     with exit_on_error(debug):
         out = Path(output)
+        check_hdf5_suffix(out, "history file")
         check_output_folder(out, "history file")
         check_outputs_spare_inputs([out], [*reports, baseline_path])
         from automodal.app.monitoring import history_of_files

@@ -111,6 +111,17 @@ def detection_threshold(params: int) -> float:
     return p + DETECTION_Z * float(np.sqrt(2.0 * p))
 
 
+def familywise_threshold(params: int, n_modes: int, alpha: float = 0.01) -> float:
+    """SNR^2 that the noise gives none of ``n_modes`` spurious modes above, but with
+    probability ``alpha``: the chi-square (``params`` degrees of freedom) quantile of
+    ``alpha / n_modes`` (Bonferroni). For claims about a whole model, where one chance
+    detection among many modes must not decide."""
+    from scipy.special import chdtri
+
+    p = float(max(params, 1))
+    return float(chdtri(p, alpha / max(int(n_modes), 1)))
+
+
 def vetoed(
     occurrence: float, n_members: int, snr2: float | None = None, params: int = 0
 ) -> bool:

@@ -48,12 +48,14 @@ class PoleMap:
     sample_rate: float | None = None
 
     def __post_init__(self) -> None:
-        if not math.isfinite(self.shift):
-            raise ValueError(f"the window decay must be finite, got {self.shift}")
+        if not (math.isfinite(self.shift) and self.shift >= 0):
+            # an exponential window decays: a negative value is a sign slip, not a window
+            raise ValueError(f"the window decay must be finite and >= 0, got {self.shift}")
         if self.sample_rate is not None and not (
-            math.isfinite(self.sample_rate) and self.sample_rate > 0
-        ):
-            raise ValueError(f"the sample rate must be positive, got {self.sample_rate}")
+            math.isfinite(2.0 * self.sample_rate) and self.sample_rate > 0
+        ):  # 2 fs enters the prewarp: it must be a finite number too
+            raise ValueError(
+                f"the sample rate must be positive and finite, got {self.sample_rate}")
 
     @property
     def is_identity(self) -> bool:

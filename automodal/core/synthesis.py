@@ -102,6 +102,62 @@ def fit_fixed_poles(
                         normalised_error=normalised_error(H, S), poles=lam, coefficients=coef)
 
 
+def conjugate_residual_ratio(
+    omega: np.ndarray,
+    H: np.ndarray,
+    poles: np.ndarray,
+    power: int = 0,
+    max_lines: int = 20000,
+) -> tuple[float, int]:
+    """How much better the complex conjugate of ``H`` fits decaying poles than ``H`` does.
+
+    The poles are made decaying (``Re lambda = -|Re lambda|``), and both ``H`` and
+    ``conj(H)`` are fitted with them as in :func:`fit_fixed_poles` (one least-squares
+    projection). An FRF in automodal's sign convention fits well and its conjugate badly;
+    one in the other convention the other way round; noise, whose distribution conjugation
+    does not change, about equally.
+
+    Parameters
+    ----------
+    omega : ndarray, shape (N,)
+        Angular frequencies (rad/s), all positive.
+    H : ndarray, shape (N, ny, nu)
+    poles : ndarray, shape (m,)
+        Poles (``Im > 0``) of a model of ``H``, of either sign of real part.
+    power : int
+        As for :func:`fit_fixed_poles`.
+    max_lines : int
+        Lines used at most (evenly spread).
+
+    Returns
+    -------
+    ratio : float
+        Residual sum of squares of ``conj(H)`` over that of ``H`` (``inf`` when ``H`` fits
+        exactly and its conjugate does not, ``1`` when both do).
+    dof : int
+        Real degrees of freedom of each residual (``2 (lines - columns) ny nu``).
+    """
+    omega = np.asarray(omega, dtype=float)
+    H = np.asarray(H, dtype=complex)
+    N, ny, nu = H.shape
+    lam = np.unique(np.asarray(poles, dtype=complex).ravel())
+    lam = -np.abs(lam.real) + 1j * lam.imag
+    fit = np.unique(np.linspace(0, N - 1, min(N, max_lines)).round().astype(int))
+    basis = pole_basis(omega[fit], lam, power, True)
+    norms = np.linalg.norm(basis, axis=0)
+    basis = basis / np.where(norms > 0, norms, 1.0)
+    X = H[fit].reshape(fit.size, ny * nu)
+    residual = []
+    for Y in (X, X.conj()):
+        coef = np.linalg.lstsq(basis, Y, rcond=None)[0]
+        residual.append(float(np.sum(np.abs(Y - basis @ coef) ** 2)))
+    k = min(basis.shape[1], fit.size)
+    dof = 2 * (fit.size - k) * ny * nu
+    if residual[0] == 0:
+        return (1.0 if residual[1] == 0 else float("inf")), dof
+    return residual[1] / residual[0], dof
+
+
 def synthesize(
     omega: np.ndarray,
     poles: np.ndarray,

@@ -45,6 +45,7 @@ This module imports the format modules (when used); they never import it.
 from __future__ import annotations
 
 import importlib
+import math
 import multiprocessing
 import os
 import sys
@@ -192,10 +193,16 @@ def _completed(read: FRFData | TimeSeries | Channels, options: TimeOptions | Non
 def _read_timeout() -> float:
     """:data:`READ_TIMEOUT_S`, or the environment's ``AUTOMODAL_READ_TIMEOUT_S``."""
     text = os.environ.get("AUTOMODAL_READ_TIMEOUT_S", "").strip()
-    try:
-        return float(text) if text else READ_TIMEOUT_S
-    except ValueError:
+    if not text:
         return READ_TIMEOUT_S
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not (math.isfinite(value) and value >= 0):
+        raise InputError(f"AUTOMODAL_READ_TIMEOUT_S={text!r}: give the time limit of a read"
+                         " in seconds, a finite number >= 0 (0: no limit), or unset it")
+    return value
 
 
 def _read_in_child(path: str | os.PathLike[str], options: TimeOptions | None,

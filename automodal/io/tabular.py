@@ -162,7 +162,11 @@ def _read_table(path: Path, source: str, options: TimeOptions | None) -> FRFData
         line = raw.strip()
         directive = _QUANTITY_LINE.match(line)
         if directive:
-            quantity = stated = _known_quantity(directive.group(1), f"line {number}", source)
+            given = _known_quantity(directive.group(1), f"line {number}", source)
+            if stated is not None and given != stated:
+                raise InputError(f"line {number}: '# quantity: {given}' contradicts the"
+                                 f" {quantity_source}, '{stated}': keep one", source)
+            quantity = stated = given
             quantity_source = f"'# quantity:' comment (line {number}) of the CSV file"
         elif line and not line.startswith("#"):
             rows.append((number, line))
@@ -176,7 +180,7 @@ def _read_table(path: Path, source: str, options: TimeOptions | None) -> FRFData
     header = _header_of(preamble, cells, comma)
     table = _number_table(cells, source)
     if stated is None:
-        units = _quantity_from_units(preamble)
+        units = _quantity_from_units(preamble, source)
         if units is not None:
             quantity, quantity_source = units
     n_cols = table.shape[1]
@@ -350,9 +354,11 @@ _UNIT_QUANTITIES = (
 )
 
 
-def _quantity_from_units(preamble: list[tuple[int, str]]) -> tuple[str, str] | None:
+def _quantity_from_units(preamble: list[tuple[int, str]],
+                         source: str) -> tuple[str, str] | None:
     """The response quantity that the unit lines before the data state (``(m/s\xb2)(N)``:
-    acceleration), with where it was read; ``None`` when they state none or several."""
+    acceleration), with where it was read; ``None`` when they state none. Units of several
+    quantities are refused: which one the FRFs are is not known."""
     found = {}
     for number, line in preamble:
         for quantity, pattern in _UNIT_QUANTITIES:
@@ -360,7 +366,11 @@ def _quantity_from_units(preamble: list[tuple[int, str]]) -> tuple[str, str] | N
             if match and quantity not in found:
                 found[quantity] = f"the unit {match.group(0)!r} on line {number} of the text file"
                 break
-    if len(found) != 1:
+    if len(found) > 1:
+        raise InputError(f"{' and '.join(found.values())} are units of different quantities"
+                         f" ({', '.join(found)}): add a comment line '# quantity: ...' that says"
+                         " which the FRFs are", source)
+    if not found:
         return None
     quantity, where = next(iter(found.items()))
     return quantity, where
