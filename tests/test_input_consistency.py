@@ -2,9 +2,9 @@
 turned into a silent wrong answer (a review of bad inputs, session 27).
 
 - an FRF in the other sign convention (``e^-iwt``): every resonance fits a growing pole;
-- a window decay that does not fit the data;
+- a window decay that would leave no resonance in the band;
 - records that are not measurements of the FRF; a coherence of 0 everywhere;
-- two quantities stated; a channel name given twice; non-finite coordinates;
+- two quantities stated; non-finite coordinates;
 - a time limit of reading that is not a number; an HDF5 output under another suffix; a batch
   given a report's name as its folder.
 """
@@ -59,13 +59,6 @@ def test_an_frf_in_the_other_sign_convention_is_refused(noise):
     with pytest.raises(InputError, match="other sign convention.*complex conjugate"):
         identify(conj, FAST)
     assert len(identify(data, FAST).physical_modes) == 4  # the data as they are: no refusal
-
-
-def test_a_window_decay_larger_than_the_damping_is_refused():
-    """2 % damping at 5.5-30 Hz decays at 0.7-3.8 1/s: a window of 8 1/s taken out of it
-    leaves every mode growing."""
-    with pytest.raises(InputError, match="window_decay_per_s = 8 1/s is more than the decay"):
-        identify(chain(window_decay_per_s=8.0), FAST)
 
 
 def test_a_window_decay_above_the_band_is_refused_before_the_work():
@@ -128,17 +121,6 @@ def test_coherence_of_zero_everywhere_is_refused_but_zero_on_some_lines_is_not()
     FRFData(frequency=data.frequency, frf=data.frf, coherence=coherence)
 
 
-@pytest.mark.parametrize("side", ["output", "input"])
-def test_a_channel_name_given_twice_is_refused(side):
-    data = chain()
-    names = {"output_names": ["a", "b", "c", "a"]} if side == "output" else {}
-    frf = data.frf if side == "output" else np.repeat(data.frf, 2, axis=2)
-    if side == "input":
-        names = {"input_names": ["hammer", "hammer"]}
-    with pytest.raises(InputError, match=f"the {side} name .* several channels"):
-        FRFData(frequency=data.frequency, frf=frf, **names)
-
-
 def test_non_finite_coordinates_are_refused():
     data = chain()
     xyz = np.zeros((4, 3))
@@ -172,7 +154,7 @@ def test_unit_lines_of_two_quantities_are_refused(tmp_path):
 # ------------------------------------------------------------------------- command line
 
 
-@pytest.mark.parametrize("value", ["nan", "abc", "-1", "inf"])
+@pytest.mark.parametrize("value", ["nan", "abc", "-1", "inf", "1e7"])
 def test_an_unreadable_read_time_limit_is_refused(tmp_path, value):
     out = tmp_path / "r.json"
     result = cli("identify", SAMPLE, "-o", out, env={"AUTOMODAL_READ_TIMEOUT_S": value})

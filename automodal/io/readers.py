@@ -45,7 +45,6 @@ This module imports the format modules (when used); they never import it.
 from __future__ import annotations
 
 import importlib
-import math
 import multiprocessing
 import os
 import sys
@@ -190,6 +189,11 @@ def _completed(read: FRFData | TimeSeries | Channels, options: TimeOptions | Non
     return read
 
 
+MAX_READ_TIMEOUT_S = 1e6
+"""The longest time limit of a read (11.6 days): the pipe's wait takes milliseconds in a
+32-bit integer, which 1e7 s overflowed (exit 1)."""
+
+
 def _read_timeout() -> float:
     """:data:`READ_TIMEOUT_S`, or the environment's ``AUTOMODAL_READ_TIMEOUT_S``."""
     text = os.environ.get("AUTOMODAL_READ_TIMEOUT_S", "").strip()
@@ -199,9 +203,10 @@ def _read_timeout() -> float:
         value = float(text)
     except ValueError:
         value = float("nan")
-    if not (math.isfinite(value) and value >= 0):
+    if not (0 <= value <= MAX_READ_TIMEOUT_S):
         raise InputError(f"AUTOMODAL_READ_TIMEOUT_S={text!r}: give the time limit of a read"
-                         " in seconds, a finite number >= 0 (0: no limit), or unset it")
+                         f" in seconds, from 0 (no limit) to {MAX_READ_TIMEOUT_S:g}, or unset"
+                         " it")
     return value
 
 
