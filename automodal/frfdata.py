@@ -273,8 +273,9 @@ def _coherence_not_all_zero(d: FRFData) -> str | None:
 RECORD_SCALE_LIMIT = 0.5
 """:func:`_records_scale`: records whose median ratio to the FRF is further than this from 1
 are refused. The median of measurements of ``H`` over ``H`` is 1 whatever their noise; a
-different unit, sign or sign convention (factors such as 2 pi, 9.81, 1000, -1, or a conjugate)
-moves it by more than this."""
+different unit or sign (factors such as 2 pi, 9.81, 1000, -1) moves it by more than this. (A
+conjugate does only where the FRF's phase is far from 0 and 180 degrees: not off the
+resonances of a lightly damped one.)"""
 
 _SCALE_SAMPLE = 1 << 16
 """Ratios at most :func:`_records_scale` takes the median of (evenly spread), so that its
@@ -291,12 +292,12 @@ def _records_scale(d: FRFData) -> str | None:
     R = d.records
     if R is None:
         return None
-    H = np.broadcast_to(d.frf, R.shape).reshape(-1)
-    X = R.reshape(-1)
-    step = max(1, X.size // _SCALE_SAMPLE)
+    step = max(1, R.size // _SCALE_SAMPLE)
     while step > 1 and math.gcd(step, d.n_outputs * d.n_inputs) != 1:
         step += 1  # a stride that is not a multiple of the entries visits every channel
-    H, X = H[::step], X[::step]
+    flat = np.arange(0, R.size, step)  # the sample only: no copy of the records' size
+    X = R.reshape(-1)[flat]
+    H = d.frf.reshape(-1)[flat % d.frf.size]  # record r's entry k is at r * frf.size + k
     ok = np.abs(H) > np.finfo(float).tiny  # a subnormal FRF would give an inf ratio
     if not np.any(ok):
         return None

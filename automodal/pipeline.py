@@ -617,19 +617,17 @@ def _analyse(
         p.z, p.Hs, p.scales, p.line_weights, choice.reference, p.T,
         p.band_rad_s, s.zeta_max, s.coalescence, p.pole_map, q,
     )
-    dispersion, H_ref = 1.0, None
+    dispersion, H_ref, snr2 = 1.0, None, None
+    params = whitening.mode_parameters(*p.Hs.shape[1:])
     if p.variance is not None:
         H_ref = ref.modal.frequency_response(p.z)
         dispersion = whitening.dispersion(H_ref, p.Hs, p.variance, choice.reference)
+        snr2 = whitening.mode_snr2(ref.modal, p.z, p.variance, jobs=s.jobs) / dispersion
+        _check_decaying(p, ref, snr2, params, s.zeta_max)  # before the bootstrap's work
     reps = _replicates(p, s, ref, choice.reference, counter(progress, "bootstrap", s.n_bootstrap),
                        warnings, dispersion, H_ref)
     tell(progress, "summary")
     clusters = reference.cluster_against_reference(ref, reps, s.n_bootstrap, s.threshold)
-    snr2 = None
-    params = whitening.mode_parameters(*p.Hs.shape[1:])
-    if p.variance is not None:
-        snr2 = whitening.mode_snr2(ref.modal, p.z, p.variance, jobs=s.jobs) / dispersion
-        _check_decaying(p, ref, snr2, params, s.zeta_max)
     modes = summary.summarise_clusters(
         clusters.labels, clusters.rho, reps.poles, reps.shapes, reps.replicate,
         clusters.subspaces, ref.modes, p.scales, ref.contribution, s.n_bootstrap,

@@ -127,7 +127,7 @@ def conjugate_residual_ratio(
     power : int
         As for :func:`fit_fixed_poles`.
     max_lines : int
-        Lines used at most (evenly spread).
+        As for :func:`fit_fixed_poles`.
 
     Returns
     -------
@@ -137,22 +137,16 @@ def conjugate_residual_ratio(
     dof : int
         Real degrees of freedom of each residual (``2 (lines - columns) ny nu``).
     """
-    omega = np.asarray(omega, dtype=float)
     H = np.asarray(H, dtype=complex)
     N, ny, nu = H.shape
-    lam = np.unique(np.asarray(poles, dtype=complex).ravel())
+    lam = np.asarray(poles, dtype=complex).ravel()
     lam = -np.abs(lam.real) + 1j * lam.imag
-    fit = np.unique(np.linspace(0, N - 1, min(N, max_lines)).round().astype(int))
-    basis = pole_basis(omega[fit], lam, power, True)
-    norms = np.linalg.norm(basis, axis=0)
-    basis = basis / np.where(norms > 0, norms, 1.0)
-    X = H[fit].reshape(fit.size, ny * nu)
     residual = []
-    for Y in (X, X.conj()):
-        coef = np.linalg.lstsq(basis, Y, rcond=None)[0]
-        residual.append(float(np.sum(np.abs(Y - basis @ coef) ** 2)))
-    k = min(basis.shape[1], fit.size)
-    dof = 2 * (fit.size - k) * ny * nu
+    for Y in (H, H.conj()):
+        fit = fit_fixed_poles(omega, Y, lam, power, max_lines=max_lines)
+        residual.append(float(np.sum(np.abs(Y - fit.synthesized) ** 2)))
+    k = min(2 * fit.poles.size + 2, N)  # each pole and its conjugate, U and L
+    dof = 2 * (N - k) * ny * nu
     if residual[0] == 0:
         return (1.0 if residual[1] == 0 else float("inf")), dof
     return residual[1] / residual[0], dof
