@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections import Counter
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -105,7 +106,7 @@ class NoiseInfo:
         names = output_names if len(output_names) == level.size else [
             f"output {i + 1}" for i in range(level.size)]
         return cls(source=str(estimate.source),
-                   output_level={str(k): float(v) for k, v in zip(names, level)},
+                   output_level=dict(zip(unique_labels(names), map(float, level))),
                    n_averages=estimate.n_averages, assumptions=list(estimate.assumptions),
                    dispersion=float(dispersion))
 
@@ -114,6 +115,21 @@ class NoiseInfo:
         return {"source": self.source, "output_level": dict(self.output_level),
                 "n_averages": self.n_averages, "assumptions": list(self.assumptions),
                 "dispersion": self.dispersion}
+
+
+def unique_labels(names: list[str]) -> list[str]:
+    """Channel names as keys: a name that occurs more than once is followed by ``" #k"``,
+    ``k`` its 1-based position in ``names`` (two outputs named ``acc`` of three become
+    ``acc #1`` and ``acc #3``); the others are kept as they are. Files stacked from
+    several tests often repeat a sensor's name, and a dict keyed by the bare names kept
+    only the last of them."""
+    names = [str(n) for n in names]
+    seen = Counter(names)
+    labels = [f"{n} #{i + 1}" if seen[n] > 1 else n for i, n in enumerate(names)]
+    if len(set(labels)) < len(labels):  # a label that is another channel's own name
+        # ("acc #1" beside two "acc"): every name followed by its position, which differs
+        labels = [f"{n} #{i + 1}" for i, n in enumerate(names)]
+    return labels
 
 
 @dataclass

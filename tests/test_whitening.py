@@ -303,3 +303,18 @@ def test_quadrature_lines_take_every_line_near_a_pole_and_weigh_the_rest():
     all_index, all_weight = whitening.quadrature_lines(z[:400], mu, 500)
     np.testing.assert_array_equal(all_index, np.arange(400))
     np.testing.assert_array_equal(all_weight, 1.0)
+
+
+def test_noise_levels_of_outputs_sharing_a_name_are_all_reported():
+    from types import SimpleNamespace
+
+    from automodal.result import NoiseInfo, unique_labels
+
+    assert unique_labels(["a", "b", "a"]) == ["a #1", "b", "a #3"]
+    assert unique_labels(["x", "y"]) == ["x", "y"]
+    # a label that is another channel's own name: every name takes its position
+    assert unique_labels(["a", "a #1", "a"]) == ["a #1", "a #1 #2", "a #3"]
+    estimate = SimpleNamespace(output_level=[0.01, 0.02, 0.03], source="data",
+                               n_averages=None, assumptions=[])
+    info = NoiseInfo.from_estimate(estimate, ["acc", "acc", "ref"])
+    assert info.output_level == {"acc #1": 0.01, "acc #2": 0.02, "ref": 0.03}
