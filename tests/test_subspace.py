@@ -356,6 +356,16 @@ def test_the_default_row_basis_keeps_the_modes_of_noisy_data(seed):
     assert sum(found) >= 8, found
 
 
+def test_real_stacked_gram_is_that_of_the_data_matrices_to_the_bit():
+    rng = np.random.default_rng(8)
+    for q, N, ny, nu in [(7, 300, 3, 2), (5, 200, 1, 1), (4, 150, 6, 3)]:
+        P = rng.standard_normal((q, N)) + 1j * rng.standard_normal((q, N))
+        H = rng.standard_normal((N, ny, nu)) + 1j * rng.standard_normal((N, ny, nu))
+        Z = np.vstack(subspace.data_matrices(P, H))
+        W = np.concatenate([Z.real, Z.imag], axis=1)
+        np.testing.assert_array_equal(subspace._real_stacked_gram(P, H), W @ W.T)
+
+
 def test_schur_from_data_is_the_same_on_any_number_of_workers():
     """Its chunks of lines are fixed by the size alone and added in order."""
     rng = np.random.default_rng(5)

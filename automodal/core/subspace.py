@@ -732,16 +732,33 @@ def schur_from_data(
         P = basis.values[:, sl]
         if weights is not None:
             P = P * np.sqrt(np.asarray(weights, float)[sl])[None, :]
-        U, Y = data_matrices(P, H[sl])
-        Z = np.vstack([U, Y])
-        W = np.concatenate([Z.real, Z.imag], axis=1)  # one product, not two (20 % less)
-        return W @ W.T
+        return _real_stacked_gram(P, H[sl])
 
     with freeing_map(jobs, n_chunks, 2.0 * N * nu * m * m) as (_, pmap):
         G = np.zeros((m, m))
         for g in pmap(part, range(n_chunks)):
             G += g
     return _schur(G[: q * nu, : q * nu], G[q * nu :, : q * nu], G[q * nu :, q * nu :])
+
+
+def _real_stacked_gram(P: np.ndarray, H: np.ndarray) -> np.ndarray:
+    """``W W^T`` of the real-stacked data matrix ``W = [Re Z, Im Z]``, ``Z = [U; Y]``
+    (:func:`data_matrices`), with ``W`` written in place: one product, not two (20 %
+    less), and no complex ``Z`` nor its real and imaginary copies (the same numbers, 1.2 to
+    1.4 times faster on five sizes of the order scan, ``q`` 14-121, 1-40 outputs)."""
+    q, N = P.shape
+    _, ny, nu = H.shape
+    W = np.empty((q * (nu + ny), 2, N * nu))
+    Wu = W[: q * nu].reshape(q, nu, 2, N, nu)
+    Wu[:] = 0.0
+    for a in range(nu):  # U[(i, a), (k, b)] = P[i, k] delta_ab
+        Wu[:, a, 0, :, a] = P.real
+        Wu[:, a, 1, :, a] = P.imag
+    Y = np.einsum("ik,kab->iakb", P, H).reshape(q * ny, N * nu)  # as data_matrices forms it
+    W[q * nu :, 0] = Y.real
+    W[q * nu :, 1] = Y.imag
+    W = W.reshape(W.shape[0], -1)
+    return W @ W.T
 
 
 SCHUR_MIN_CHUNKS = 4
