@@ -180,7 +180,7 @@ def prepare(
     """
     freq, H, band = select_band(data, s.band_hz, warnings)
     operational = data.output_only
-    power = 0 if operational else quantity_power(data.quantity)
+    power = _power(data)
     data, freq, H, flatter = checks.prepare(data, freq, H, warnings, power)
     noise = None
     try:
@@ -217,6 +217,12 @@ def prepare(
         z=to_unit_circle(omega, T), scales=scales, Hs=Hs, line_weights=weights,
         noise=noise, variance=variance, factor=factor, pole_map=pole_map,
     )
+
+
+def _power(data: FRFData) -> int:
+    """The FRFs are a receptance times ``(j w)^power`` (0 receptance, 1 mobility, 2
+    accelerance); output-only half spectra have the pole-residue form as they are (0)."""
+    return 0 if data.output_only else quantity_power(data.quantity)
 
 
 def pole_map_of(data: FRFData) -> PoleMap:
@@ -643,13 +649,13 @@ def _analyse(
 
 
 def _check_decaying(p: Prepared, ref: reference.Reference, snr2: np.ndarray,
-                    params: int, s_zeta_max: float) -> None:
+                    params: int, zeta_max: float) -> None:
     """Refuse an FRF whose detected resonances the reference model fits with growing poles.
 
     Counted (:func:`automodal.core.reference.growing_share`): the modal contributions of
     the modes that the noise would not give by chance
     (:func:`automodal.core.physicalness.familywise_threshold`) and whose damping ratio, of
-    either sign, is below ``s_zeta_max``, as for the physical candidates. The contribution,
+    either sign, is below ``zeta_max``, as for the physical candidates. The contribution,
     not the SNR^2: the pole-zero pairs of an over-sized model of exact data have an SNR^2
     of rounding. Most of it on growing model poles, with the conjugate FRF fitting their
     decaying images better (:func:`_conjugate_fits_better`), means the FRF is in the other
@@ -664,7 +670,7 @@ def _check_decaying(p: Prepared, ref: reference.Reference, snr2: np.ndarray,
     detected = snr2 > physicalness.familywise_threshold(params, snr2.size)
     model_poles = p.pole_map.to_model(ref.modes.poles)
     # candidates and their mirror images: |zeta| below the largest damping of a mode
-    light = np.abs(pole_damping_ratio(model_poles)) < s_zeta_max
+    light = np.abs(pole_damping_ratio(model_poles)) < zeta_max
     weight = np.where(detected & light, ref.contribution, 0.0)
     band = tuple(p.pole_map.model_omega(np.asarray(p.band_rad_s)))  # prewarped as the poles
     share = reference.growing_share(model_poles, weight, band)
@@ -690,8 +696,7 @@ def _conjugate_fits_better(p: Prepared, poles: np.ndarray) -> bool:
     conjugate's model, and the test passes them."""
     from scipy.special import fdtri
 
-    power = 0 if p.data.output_only else quantity_power(p.data.quantity)
-    ratio, dof = synthesis.conjugate_residual_ratio(p.omega, p.H, poles, power)
+    ratio, dof = synthesis.conjugate_residual_ratio(p.omega, p.H, poles, _power(p.data))
     if dof <= 0:
         return False
     return ratio < min(0.5, float(fdtri(dof, dof, CONJUGATE_EVIDENCE)))
@@ -843,8 +848,7 @@ def _physical_fit(p: Prepared, modes: list[IdentifiedMode]) -> synthesis.FixedPo
             and np.isfinite(m.damping_ratio)]
     lam = synthesis.modal_poles(np.array([m.frequency_hz for m in phys], dtype=float),
                                 np.array([m.damping_ratio for m in phys], dtype=float))
-    power = 0 if p.data.output_only else quantity_power(p.data.quantity)
-    return synthesis.fit_fixed_poles(p.omega, p.H, p.pole_map.to_model(lam), power)
+    return synthesis.fit_fixed_poles(p.omega, p.H, p.pole_map.to_model(lam), _power(p.data))
 
 
 def resolution_warnings(

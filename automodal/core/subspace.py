@@ -352,11 +352,17 @@ def data_matrices(P: np.ndarray, H: np.ndarray) -> tuple[np.ndarray, np.ndarray]
         FRF.
     """
     q, N = P.shape
-    _, ny, nu = H.shape
+    nu = H.shape[2]
     # U[(i, a), (k, b)] = P[i, k] delta_ab ; Y[(i, a), (k, b)] = P[i, k] H[k, a, b]
     U = np.einsum("ik,ab->iakb", P, np.eye(nu)).reshape(q * nu, N * nu)
-    Y = np.einsum("ik,kab->iakb", P, H).reshape(q * ny, N * nu)
-    return U, Y
+    return U, _output_rows(P, H)
+
+
+def _output_rows(P: np.ndarray, H: np.ndarray) -> np.ndarray:
+    """``Y`` of :func:`data_matrices`: ``Y[(i, a), (k, b)] = P[i, k] H[k, a, b]``."""
+    q, N = P.shape
+    _, ny, nu = H.shape
+    return np.einsum("ik,kab->iakb", P, H).reshape(q * ny, N * nu)
 
 
 def projected_output_qr(
@@ -754,7 +760,7 @@ def _real_stacked_gram(P: np.ndarray, H: np.ndarray) -> np.ndarray:
     for a in range(nu):  # U[(i, a), (k, b)] = P[i, k] delta_ab
         Wu[:, a, 0, :, a] = P.real
         Wu[:, a, 1, :, a] = P.imag
-    Y = np.einsum("ik,kab->iakb", P, H).reshape(q * ny, N * nu)  # as data_matrices forms it
+    Y = _output_rows(P, H)
     W[q * nu :, 0] = Y.real
     W[q * nu :, 1] = Y.imag
     W = W.reshape(W.shape[0], -1)

@@ -7,10 +7,12 @@ import io
 import os
 import secrets
 import shutil
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
 
 if TYPE_CHECKING:
     import h5py
@@ -78,10 +80,12 @@ def hdf5_in_memory(path: str | os.PathLike[str]) -> Iterator[h5py.File]:
         tmp.write_bytes(buffer.getbuffer())
 
 
-def check_free_space(path: str | os.PathLike[str], n_bytes: int) -> None:
+def check_free_space(path: str | os.PathLike[str], arrays: Iterable[Any]) -> None:
     """Raise ``OSError`` (``ENOSPC``) when the folder of ``path`` (or the nearest existing
-    one above it) has less than ``n_bytes`` and a mebibyte free: a large HDF5 file is
-    written straight to disk, and HDF5 crashes when the disk fills under it."""
+    one above it) has less free than the bytes of ``arrays`` (``None`` entries skipped) and a
+    mebibyte: a large HDF5 file is written straight to disk, and HDF5 crashes when the disk
+    fills under it."""
+    n_bytes = sum(np.asarray(a).nbytes for a in arrays if a is not None)
     try:
         free = shutil.disk_usage(nearest_existing_folder(path)).free
     except OSError:

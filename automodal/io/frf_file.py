@@ -251,7 +251,7 @@ def write_frf(path: str | os.PathLike[str], data: FRFData,
         raise ValueError("the time records' channels are not the FRFs' channels")
     arrays = (data.frequency, data.frf, data.coherence, data.records,
               None if time is None else time.outputs, None if time is None else time.inputs)
-    check_free_space(path, sum(np.asarray(a).nbytes for a in arrays if a is not None))
+    check_free_space(path, arrays)
     with atomic_path(path) as tmp, h5py.File(tmp, "w") as f:
         write_header(f, data.attributes, data.quantity)
         f.create_dataset("frequency", data=np.asarray(data.frequency, dtype=np.float64))

@@ -179,8 +179,7 @@ def write_time(path: str | os.PathLike[str], ts: TimeSeries) -> None:
     if problem:
         raise ValueError(problem)
     strings = h5py.string_dtype()
-    check_free_space(path, sum(np.asarray(a).nbytes for a in (ts.outputs, ts.inputs)
-                               if a is not None))
+    check_free_space(path, (ts.outputs, ts.inputs))
     with atomic_path(path) as tmp, h5py.File(tmp, "w") as f:
         write_header(f, ts.attributes, quantity)
         write_time_group(f, ts)
