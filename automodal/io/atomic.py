@@ -12,8 +12,6 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-import numpy as np
-
 if TYPE_CHECKING:
     import h5py
 
@@ -85,6 +83,8 @@ def check_free_space(path: str | os.PathLike[str], arrays: Iterable[Any]) -> Non
     one above it) has less free than the bytes of ``arrays`` (``None`` entries skipped) and a
     mebibyte: a large HDF5 file is written straight to disk, and HDF5 crashes when the disk
     fills under it."""
+    import numpy as np  # not at import: the command line loads no library to start
+
     n_bytes = sum(np.asarray(a).nbytes for a in arrays if a is not None)
     try:
         free = shutil.disk_usage(nearest_existing_folder(path)).free
