@@ -42,7 +42,6 @@ from automodal.core import (
     physicalness,
     reference,
     replicates,
-    resolution,
     stabilization,
     sub_bands,
     subspace,
@@ -189,8 +188,6 @@ def prepare(
     except ValueError as exc:  # too few lines for the local polynomial
         warnings.append(f"no noise model ({exc}): envelope line weights and RMS scales,"
                         " bootstrap intervals")
-    if noise is not None:
-        freq, H, noise = _thinned(freq, H, noise, warnings)
     H, reciprocal = apply_reciprocity(H, warnings)
     pole_map = pole_map_of(data)
     if pole_map.shift > 2.0 * np.pi * freq[-1]:
@@ -220,27 +217,6 @@ def prepare(
         z=to_unit_circle(omega, T), scales=scales, Hs=Hs, line_weights=weights,
         noise=noise, variance=variance, factor=factor, pole_map=pole_map,
     )
-
-
-def _thinned(
-    freq: np.ndarray, H: np.ndarray, noise: NoiseEstimate, warnings: list[str]
-) -> tuple[np.ndarray, np.ndarray, NoiseEstimate]:
-    """The band's lines, FRF and noise model, thinned where its resonances are far wider
-    than the line spacing (:func:`automodal.core.resolution.thinning_step`)."""
-    k, width = resolution.thinning_step(H, noise.variance)
-    if k < 2:
-        return freq, H, noise
-    n = freq.size
-    keep = np.unique(np.append(np.arange(0, n, k), n - 1))  # the last line too
-    searched = 2 * k * resolution.LINES_PER_HALF_POWER_BAND  # wider is not measured
-    warnings.append(
-        f"the band has {n} frequency lines and its narrowest resonance peak is"
-        f" {'at least' if width >= searched else 'about'} {width:.0f} lines wide at half"
-        f" power: every {k}th line was kept ({keep.size}"
-        f" lines), which makes the run about {k} times faster and the intervals about"
-        f" {np.sqrt(k):.2g} times wider than all the lines would give; analyse narrower"
-        " bands (--band) for the full precision")
-    return freq[keep], H[keep], replace(noise, variance=noise.variance[keep])
 
 
 def _power(data: FRFData) -> int:

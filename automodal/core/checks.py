@@ -73,8 +73,7 @@ kept, the band's first and last included). Time and memory grow with the lines: 
 lines of a 6-output test took 11 s and 0.8 GB with 100 replicates, and a 10^6-line file
 15 s and 0.76 GB through the command line. At that density a mode at a tenth of the band's
 top frequency or above keeps 3 lines in its half-power band down to a damping ratio of
-7.5e-5. (The pipeline then thins a band whose resonances are much wider than its line
-spacing: :mod:`automodal.core.resolution`.)"""
+7.5e-5."""
 
 MAX_MAGNITUDE = 1e100
 """Largest FRF magnitude accepted: the identification sums squares of the data (over up to
