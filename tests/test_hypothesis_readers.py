@@ -448,9 +448,11 @@ def hdf5_layouts(draw: st.DrawFn, mode: str | None = None) -> dict[str, Any]:
         if draw(st.integers(0, 4)) == 4:
             datasets[name] = draw(strategy())
     H = datasets.get("frf")
-    if clean and "records/frf" in datasets and isinstance(H, np.ndarray) and H.ndim == 3:
-        # valid records are measurements of the FRF: it times a little noise
-        noise = datasets["records/frf"]
+    noise = datasets.get("records/frf")
+    if (clean and noise is not None and isinstance(H, np.ndarray)
+            and np.issubdtype(H.dtype, np.number) and H.shape == noise.shape[1:]):
+        # valid records are measurements of the FRF (when it is a valid one, not a drawn
+        # fault such as strings or another shape): it times a little noise
         datasets["records/frf"] = (H.astype(complex)[None] * (1.0 + 0.01 * noise / np.maximum(
             np.abs(noise), 1e-300))).astype(noise.dtype)
     if not clean and draw(st.integers(0, 12)) == 12:  # a dataset where a group belongs,
