@@ -188,6 +188,8 @@ def prepare(
     except ValueError as exc:  # too few lines for the local polynomial
         warnings.append(f"no noise model ({exc}): envelope line weights and RMS scales,"
                         " bootstrap intervals")
+    if noise is not None and not operational:
+        data, freq, H, noise = _compressed(data, freq, H, noise, warnings)
     H, reciprocal = apply_reciprocity(H, warnings)
     pole_map = pole_map_of(data)
     if pole_map.shift > 2.0 * np.pi * freq[-1]:
@@ -217,6 +219,42 @@ def prepare(
         z=to_unit_circle(omega, T), scales=scales, Hs=Hs, line_weights=weights,
         noise=noise, variance=variance, factor=factor, pole_map=pole_map,
     )
+
+
+def _compressed(
+    data: FRFData, freq: np.ndarray, H: np.ndarray, noise: NoiseEstimate,
+    warnings: list[str],
+) -> tuple[FRFData, np.ndarray, np.ndarray, NoiseEstimate]:
+    """The band in fewer lines where its responses end long before its lines' record does
+    (:mod:`automodal.core.line_compression`): ``data`` (the band's lines only, its records
+    compressed alike and its coherence, already read into ``noise``, left out), lines, FRFs
+    and noise (the variance propagated; the levels stay the measurement's); or all as they
+    are."""
+    from automodal.core import line_compression
+
+    plan = line_compression.plan_compression(freq, H, noise.variance)
+    if plan is None:
+        return data, freq, H, noise
+    kept = freq[plan.kept]
+    records = None
+    if data.records is not None:
+        lines = np.isin(data.frequency, freq)
+        if int(lines.sum()) == freq.size:
+            records = line_compression.compress(data.records[:, lines], plan)
+    df = (freq[-1] - freq[0]) / (freq.size - 1)
+    note = (f"{freq.size} lines {df:.3g} Hz apart compressed to {kept.size}"
+            f" ({kept[1] - kept[0]:.3g} Hz apart): the impulse response over the band,"
+            " cut to its first"
+            f" {plan.positive / (freq.size * df):.3g} s (at least twice as long as it stands"
+            " out of the noise), then back to every"
+            f" {plan.factor}-th line; each line's noise variance is about 1/{plan.factor} of"
+            " the measured lines'")
+    warnings.append(f"the band has {note}")
+    noise = replace(noise, variance=line_compression.compressed_variance(noise.variance, plan),
+                    assumptions=noise.assumptions + (note,))
+    data = replace(data, frequency=kept, frf=line_compression.compress(H, plan),
+                   coherence=None, records=records)
+    return data, kept, data.frf, noise
 
 
 def _power(data: FRFData) -> int:

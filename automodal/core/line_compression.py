@@ -1,0 +1,365 @@
+"""Fewer frequency lines for bands sampled far more finely than their responses last.
+
+Lines spaced ``df`` apart describe a response of up to ``1 / df`` seconds: the inverse DFT
+of a band's ``N`` lines is its (band-limited) impulse response, ``N`` samples over that
+time. A band whose response falls into the noise long before ``1 / df`` (a long record
+analysed in one block, or an FFT zero-padded for a fine display) carries the same
+information in fewer lines: the response is cut to a window that holds it and the FRF of
+the cut response is taken at every ``K``-th line. This is not keeping every ``K``-th line.
+Keeping lines is exact at the lines kept and throws the others' noise averaging away (the
+poles' variance grows ``K`` times); the cut keeps it: a compressed line is a weighted sum
+of about ``K`` neighbouring lines, with about ``1 / K`` of their noise variance
+(:func:`compressed_variance` propagates it exactly), and its error is the part of the
+response outside the window.
+
+Whether a cut is safe is judged on the data, not on the peaks seen (a narrow or weak mode
+that no peak search counts still rings in the impulse response, and still leaves a
+residual where the cut loses it):
+
+1. **Where the response ends** (:func:`response_tails`). The band's FRF, less a smooth
+   cubic that joins its two ends (the DFT treats the band as periodic, and a jump between
+   its ends would ring as ``1 / t``), is transformed to time; each entry's energy is
+   averaged over blocks and compared with its noise level (the noise model's variance over
+   the lines, or less where the record's quiet middle is quieter: the lower is the
+   cautious one). The response is seen as far as a block stands out of the noise at a
+   familywise false-alarm probability of :data:`FALSE_ALARM`, and its decay there is
+   fitted.
+2. **The cut** keeps at least twice that on either side of time zero, and as much more as
+   the fitted decay needs for the response cut off to make an error below
+   :data:`TAIL_ERROR` of a compressed line's noise variance (:meth:`Tail.cut_allowed`: a
+   response still stands below the noise after it is last seen, and its sum over the lines
+   is coherent). At least :data:`MIN_LINES` lines are kept.
+3. **The check** (:func:`residual_excess`): the lines the window's FRF leaves unexplained
+   (the response outside the window, plus noise) must be noise: their squared residual over
+   the noise variance, summed over 1, 2, 4, ... up to ``K`` neighbouring lines of every
+   entry, must stay below the Gamma quantile of :data:`FALSE_ALARM` over all these tests. A
+   feature the blocks missed (a weak mode whose ringing lasts the record: under the noise at
+   every instant, a peak of a few lines in frequency) fails it, and ``K`` is halved until it
+   passes, or no compression is made.
+
+The lines kept are lines of the band (every ``K``-th, from its first), so that the line
+spacing the identification sees is a real one: the window holds every response the check
+can see, so a mode it holds spans as many of the kept lines as its ringing allows.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+MIN_LINES = 16_384
+"""Fewest lines a compression leaves, and only bands of more than twice as many are
+compressed. The identification's time grows with the lines (a one-output band of three
+modes and 1 % noise: 2^14 lines about 2 s through the command line, 2^20 lines, decimated
+to 200 000, 21 s and 1.6 GB; ``benchmarks/results_fine_lines.md``): up to this many lines
+the time is that of the family's files, and below twice this many a compression would save
+at most half of it."""
+
+FALSE_ALARM = 1e-3
+"""Familywise probability that pure noise makes `response_tails` see response in a
+block, or :func:`residual_excess` reject a cut (each over all its tests)."""
+
+UNIFORM_TOLERANCE = 1e-6
+"""Lines are evenly spaced when every spacing is within this share of their mean (the
+DFT's requirement)."""
+
+EDGE_LINES = 32
+"""Lines at each end of the band whose straight-line fit gives the end's value and slope
+for the cubic that joins the ends (:func:`_edge_cubic`)."""
+
+MAX_BLOCKS = 1024
+"""Blocks of the impulse response over which :func:`response_tails` averages the energy
+(at most; each at least :data:`MIN_BLOCK` samples)."""
+
+MIN_BLOCK = 16
+"""Fewest samples averaged in a block: the noise energy of a block is then within a factor
+of about 2 of its mean at the familywise level."""
+
+TAIL_ERROR = 0.1
+"""Largest error the cut may make at a compressed line, from the response's decay
+extrapolated past the cut, as a share of that line's noise variance (a third of its noise
+deviation): within what the noise model itself is uncertain by."""
+
+CHUNK_VALUES = 1 << 22
+"""Entries are transformed a few at a time, at most this many values at once (memory)."""
+
+
+@dataclass(frozen=True)
+class CompressionPlan:
+    """How a band is compressed: every ``factor``-th of its ``n_lines`` lines is kept, as
+    the FRF of its impulse response cut to the first ``positive`` and the last
+    ``negative`` samples (``positive + negative = n_lines // factor``)."""
+
+    n_lines: int
+    factor: int
+    positive: int
+    negative: int
+
+    def __post_init__(self) -> None:
+        if not (self.factor >= 2 and self.positive >= 1 and self.negative >= 1
+                and self.positive + self.negative <= self.n_lines // self.factor):
+            raise ValueError(f"inconsistent compression plan {self!r}")
+
+    @property
+    def kept(self) -> np.ndarray:
+        """Indices of the lines kept."""
+        return np.arange(0, self.n_lines, self.factor)
+
+    def window(self) -> np.ndarray:
+        """The cut, ``(n_lines,)``: 1 on the samples kept, 0 elsewhere."""
+        w = np.zeros(self.n_lines)
+        w[: self.positive] = 1.0
+        w[self.n_lines - self.negative:] = 1.0
+        return w
+
+
+def is_uniform(frequency: np.ndarray) -> bool:
+    """Whether ``frequency`` (increasing) is evenly spaced within
+    :data:`UNIFORM_TOLERANCE`."""
+    f = np.asarray(frequency, dtype=float)
+    if f.size < 3:
+        return False
+    d = np.diff(f)
+    mean = (f[-1] - f[0]) / (f.size - 1)
+    return bool(mean > 0 and np.max(np.abs(d - mean)) <= UNIFORM_TOLERANCE * mean)
+
+
+def _entries(a: np.ndarray) -> np.ndarray:
+    """``(N, ...)`` as ``(N, C)``."""
+    return a.reshape(a.shape[0], -1)
+
+
+def _chunks(n_lines: int, n_entries: int) -> list[slice]:
+    """Slices of the entries to transform together (:data:`CHUNK_VALUES`)."""
+    step = max(1, CHUNK_VALUES // max(n_lines, 1))
+    return [slice(i, min(i + step, n_entries)) for i in range(0, n_entries, step)]
+
+
+def _edge_cubic(H: np.ndarray) -> np.ndarray:
+    """The cubic (in the line index) that takes each entry's value and slope at the band's
+    first line and one line past its last (straight-line fits over :data:`EDGE_LINES`
+    lines at each end), ``(N, C)``: the FRF less it is continuous, with its slope, where the
+    DFT joins the band's ends."""
+    N = H.shape[0]
+    m = min(EDGE_LINES, N // 4)
+    k = np.arange(m, dtype=float)
+    A = np.column_stack([np.ones(m), k - (m - 1) / 2.0])
+    pinv = np.linalg.pinv(A)
+    lo = pinv @ H[:m]  # value at the middle of the first m lines, slope per line
+    hi = pinv @ H[N - m:]
+    c = (m - 1) / 2.0
+    v0, s0 = lo[0] - c * lo[1], lo[1]  # at line 0
+    v1, s1 = hi[0] + (c + 1.0) * hi[1], hi[1]  # at line N (one past the last)
+    x = (np.arange(N, dtype=float) / N)[:, None]
+    h00, h10 = 2 * x**3 - 3 * x**2 + 1, x**3 - 2 * x**2 + x
+    h01, h11 = -2 * x**3 + 3 * x**2, x**3 - x**2
+    return h00 * v0 + h10 * (s0 * N) + h01 * v1 + h11 * (s1 * N)
+
+
+def _gamma_quantile(shape: np.ndarray | float, tail: float) -> np.ndarray:
+    """The value a Gamma(``shape``, 1) variable exceeds with probability ``tail``."""
+    from scipy.special import gammainccinv
+
+    return np.asarray(gammainccinv(shape, tail), dtype=float)
+
+
+@dataclass(frozen=True)
+class Tail:
+    """Where one entry's impulse response, on one side of time zero, is last seen above the
+    noise, and how it decays there (:func:`response_tails`).
+
+    Attributes
+    ----------
+    side : int
+        0 after time zero, 1 before it (the last samples of the DFT).
+    end : int
+        Samples from time zero to the end of the last block standing out of the noise.
+    excess : float
+        The response's energy per sample there, in the entry's noise per sample (the
+        fitted decay's value).
+    rate : float
+        Its energy's decay rate per sample (``inf`` where it fell within one block; 0 where
+        no decay could be fitted: the response may last the record).
+    """
+
+    side: int
+    end: int
+    excess: float
+    rate: float
+
+    def cut_allowed(self, kept: int, window: int) -> bool:
+        """Whether cutting this side after ``kept`` samples, in a window of ``window``,
+        leaves at most :data:`TAIL_ERROR` of a compressed line's noise variance as error.
+
+        The decay extrapolated past the cut (energy ``excess exp(-rate (t - end))``) sums
+        to ``S = e / rate`` (``e`` its value at the cut); its error on a line is at most
+        ``(sum |h|)^2 = 4 S / rate`` against the ``window`` samples of noise of a
+        compressed line."""
+        if kept < 2 * self.end:
+            return False
+        if np.isinf(self.rate):
+            return True
+        if not self.rate > 0:
+            return False
+        at_cut = self.excess * np.exp(-self.rate * (kept - self.end))
+        return bool(4.0 * at_cut / self.rate**2 <= TAIL_ERROR * window)
+
+
+def response_tails(H: np.ndarray, variance: np.ndarray) -> list[Tail]:
+    """Where the band's impulse response stands out of the noise, per entry and side of
+    time zero, and how fast it decays there (step 1 of the module's rule).
+
+    Parameters
+    ----------
+    H : ndarray, shape (N, ...)
+        The band's FRFs, on evenly spaced lines.
+    variance : ndarray, shape of ``H``
+        Their noise variance.
+
+    Returns
+    -------
+    list of Tail
+        One per entry and side where a block stands out.
+    """
+    Hc, vc = _entries(np.asarray(H)), _entries(np.asarray(variance, dtype=float))
+    N, C = Hc.shape
+    half = N // 2
+    n_blocks = max(1, min(MAX_BLOCKS // 2, half // MIN_BLOCK))
+    L = max(1, half // n_blocks)
+    limit = float(_gamma_quantile(L, FALSE_ALARM / (2 * n_blocks * C))) / L
+    centre = (np.arange(n_blocks) + 0.5) * L
+    tails: list[Tail] = []
+    for sl in _chunks(N, C):
+        r = Hc[:, sl] - _edge_cubic(Hc[:, sl])
+        e = np.abs(np.fft.ifft(r, axis=0)) ** 2
+        level = np.mean(vc[:, sl], axis=0) / N  # a line's noise spread over the samples
+        sides = (e[: n_blocks * L].reshape(n_blocks, L, -1).mean(axis=1),
+                 e[::-1][: n_blocks * L].reshape(n_blocks, L, -1).mean(axis=1))
+        # the record's quiet middle (the last quarter of each side's blocks), where it is
+        # below the noise model's level: the lower level is the cautious one
+        quiet = np.median(np.concatenate([b[-max(1, n_blocks // 4):] for b in sides]), axis=0)
+        level = np.minimum(level, quiet)
+        level = np.where(level > 0, level, np.inf)
+        for side, blocks in enumerate(sides):
+            x = blocks / level[None, :]
+            for c in np.flatnonzero(np.any(x > limit, axis=0)):
+                last = int(np.flatnonzero(x[:, c] > limit)[-1])
+                tails.append(_tail(side, x[: last + 1, c] - 1.0, centre[: last + 1], L))
+    return tails
+
+
+def _tail(side: int, excess: np.ndarray, centre: np.ndarray, L: int) -> Tail:
+    """A :class:`Tail` from the blocks' energy excess over the noise up to the last block
+    standing out: the decay fitted (least squares of its logarithm) over the later half of
+    them."""
+    last = excess.size - 1
+    end = (last + 1) * L
+    sel = np.arange(last // 2, last + 1)
+    sel = sel[excess[sel] > 0]
+    if last == 0:
+        return Tail(side=side, end=end, excess=float(excess[0]), rate=np.inf)
+    if sel.size < 2:
+        return Tail(side=side, end=end, excess=float(excess[last]), rate=0.0)
+    slope, intercept = np.polyfit(centre[sel], np.log(excess[sel]), 1)
+    return Tail(side=side, end=end, excess=float(np.exp(intercept + slope * end)),
+                rate=float(max(-slope, 0.0)))
+
+
+def _windowed(H: np.ndarray, plan: CompressionPlan) -> np.ndarray:
+    """The FRF of the impulse response cut by ``plan``'s window, at every line,
+    ``(N, C)``."""
+    Hc = _entries(np.asarray(H))
+    out = np.empty(Hc.shape, dtype=complex)
+    w = plan.window()[:, None]
+    for sl in _chunks(*Hc.shape):
+        trend = _edge_cubic(Hc[:, sl])
+        out[:, sl] = np.fft.fft(np.fft.ifft(Hc[:, sl] - trend, axis=0) * w, axis=0) + trend
+    return out
+
+
+def residual_excess(H: np.ndarray, variance: np.ndarray, plan: CompressionPlan) -> bool:
+    """Whether the lines the cut leaves unexplained hold more than noise (step 3 of the
+    module's rule): ``True`` rejects the plan.
+
+    The residual ``H - (the window's FRF)`` at every line has the noise variance times
+    ``1 - W / N`` (``W`` the samples kept). Its squared magnitude over that, summed over
+    ``s = 1, 2, 4, ...`` (up to the factor) neighbouring lines of every entry, is compared
+    with the Gamma(``s``) quantile of :data:`FALSE_ALARM` shared by all the sums.
+    """
+    Hc, vc = _entries(np.asarray(H)), _entries(np.asarray(variance, dtype=float))
+    N, C = Hc.shape
+    kept = (plan.positive + plan.negative) / N
+    scales = [1 << i for i in range(int(np.log2(plan.factor)) + 1)]
+    tail = FALSE_ALARM / (len(scales) * N * C)
+    limits = _gamma_quantile(np.asarray(scales, dtype=float), tail)
+    G = _windowed(Hc, plan)
+    for sl in _chunks(N, C):
+        x = np.abs(Hc[:, sl] - G[:, sl]) ** 2 / (vc[:, sl] * (1.0 - kept))
+        c = np.concatenate([np.zeros((1, x.shape[1])), np.cumsum(x, axis=0)])
+        for s, limit in zip(scales, limits):
+            if s <= N and np.max(c[s:] - c[:-s]) > limit:
+                return True
+    return False
+
+
+def plan_compression(frequency: np.ndarray, H: np.ndarray, variance: np.ndarray,
+                     min_lines: int = MIN_LINES) -> CompressionPlan | None:
+    """The compression of a band by the module's rule, or ``None`` (lines not evenly
+    spaced, at most ``2 min_lines`` of them, a response that lasts too long, or no factor
+    whose cut passes :func:`residual_excess`).
+
+    Parameters
+    ----------
+    frequency : ndarray, shape (N,)
+        The band's lines (Hz).
+    H : ndarray, shape (N, ny, nu)
+        Its FRFs.
+    variance : ndarray, shape (N, ny, nu)
+        Their noise variance (> 0).
+    min_lines : int
+        Fewest lines kept.
+    """
+    N = int(np.shape(H)[0])
+    if N <= 2 * min_lines or not is_uniform(frequency):
+        return None
+    tails = response_tails(H, variance)
+    positive = max((t.end for t in tails if t.side == 0), default=0)
+    negative = max((t.end for t in tails if t.side == 1), default=0)
+    factor = N // max(2 * (positive + negative), min_lines)
+    while factor >= 2:
+        W = N // factor
+        # the samples kept are shared in proportion to the two extents
+        pos = min(W - 1, max(1, int(round(W * (positive + 1) / (positive + negative + 2)))))
+        plan = CompressionPlan(n_lines=N, factor=factor, positive=pos, negative=W - pos)
+        if all(t.cut_allowed(pos if t.side == 0 else W - pos, W) for t in tails) and (
+                not residual_excess(H, variance, plan)):
+            return plan
+        factor //= 2
+    return None
+
+
+def compress(H: np.ndarray, plan: CompressionPlan) -> np.ndarray:
+    """The FRFs ``(N, ...)`` (or records ``(R, N, ...)``) compressed by ``plan``: their
+    cut response's FRF at the lines kept, ``(N // factor rounded up, ...)``."""
+    a = np.asarray(H)
+    if a.shape[0] != plan.n_lines:  # records: one set of FRFs each
+        return np.stack([compress(r, plan) for r in a])
+    return _windowed(a, plan)[plan.kept].reshape((plan.kept.size,) + a.shape[1:])
+
+
+def compressed_variance(variance: np.ndarray, plan: CompressionPlan) -> np.ndarray:
+    """The noise variance of :func:`compress`'s lines, for independent noise of
+    ``variance`` (``(N, ...)``) on the band's lines: a compressed line is the sum of the
+    lines weighted by the cut's kernel ``c`` (the DFT of the window over ``N``), so its
+    variance is the circular convolution of ``|c|^2`` with ``variance`` (``sum |c|^2 =
+    W / N``, about ``1 / factor``)."""
+    v = _entries(np.asarray(variance, dtype=float))
+    kernel = np.abs(np.fft.fft(plan.window()) / plan.n_lines) ** 2
+    K = np.fft.fft(kernel)[:, None]
+    out = np.empty((plan.kept.size, v.shape[1]))
+    for sl in _chunks(*v.shape):
+        out[:, sl] = np.fft.ifft(np.fft.fft(v[:, sl], axis=0) * K, axis=0).real[plan.kept]
+    floor = np.min(v, axis=0) * (plan.positive + plan.negative) / plan.n_lines
+    out = np.maximum(out, floor[None, :])  # rounding of the convolution, never below
+    return out.reshape((plan.kept.size,) + np.shape(variance)[1:])

@@ -1,0 +1,171 @@
+"""Compression of finely sampled bands (automodal.core.line_compression)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from automodal.core import line_compression as lc
+
+
+def _mode(f: np.ndarray, fn: float, width_lines: float, peak: float) -> np.ndarray:
+    """A receptance mode at ``fn`` Hz whose half-power band spans ``width_lines`` lines of
+    ``f``, scaled to the peak magnitude ``peak``."""
+    df = f[1] - f[0]
+    zeta = width_lines * df / (2.0 * fn)
+    w, wn = 2 * np.pi * f, 2 * np.pi * fn
+    h = 1.0 / (wn**2 - w**2 + 2j * zeta * wn * w)
+    return h * peak / np.abs(h).max()
+
+
+def _noisy(H0: np.ndarray, sigma: np.ndarray | float, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    rng = np.random.default_rng(seed)
+    v = np.broadcast_to(np.asarray(sigma, dtype=float) ** 2, H0.shape).copy()
+    n = rng.standard_normal(H0.shape) + 1j * rng.standard_normal(H0.shape)
+    return H0 + np.sqrt(v / 2) * n, v
+
+
+def _bias(H0: np.ndarray, v: np.ndarray, plan: lc.CompressionPlan) -> float:
+    """Largest error of the compressed noise-free FRF at the lines kept, in standard
+    deviations of the compressed noise."""
+    err = np.abs(lc.compress(H0, plan) - H0[plan.kept])
+    return float(np.max(err / np.sqrt(lc.compressed_variance(v, plan))))
+
+
+F = np.linspace(1.0, 100.0, 2**16)
+WIDE = _mode(F, 30.0, 400.0, 1.0)
+
+
+def test_uniform_lines():
+    assert lc.is_uniform(np.linspace(0.5, 10, 1000))
+    f = np.linspace(0.5, 10, 1000)
+    f[500] += 1e-3 * (f[1] - f[0])
+    assert not lc.is_uniform(f)
+    assert not lc.is_uniform(np.geomspace(1, 10, 100))
+
+
+def test_plan_is_validated():
+    with pytest.raises(ValueError):
+        lc.CompressionPlan(n_lines=100, factor=4, positive=20, negative=10)
+    with pytest.raises(ValueError):
+        lc.CompressionPlan(n_lines=100, factor=1, positive=20, negative=10)
+
+
+def test_propagated_variance_is_exact():
+    # the compression is linear: its noise variance is sum_k |A_jk|^2 v_k
+    N = 96
+    plan = lc.CompressionPlan(n_lines=N, factor=4, positive=16, negative=8)
+    v = np.linspace(1.0, 3.0, N)[:, None, None] ** 2
+    A = np.stack([lc.compress(np.eye(N)[:, k][:, None, None].astype(complex), plan)[:, 0, 0]
+                  for k in range(N)], axis=1)
+    expected = (np.abs(A) ** 2) @ v[:, 0, 0]
+    # exact but for the smooth cubic joining the band's ends (fitted to its edge lines),
+    # whose noise the propagation leaves out: it counts at the ends only
+    got = lc.compressed_variance(v, plan)[:, 0, 0]
+    inner = slice(4, -4)
+    assert np.allclose(got[inner], expected[inner], rtol=0.01)
+    assert np.allclose(got, expected, rtol=0.2)
+    # about 1/factor of a line's
+    flat = lc.compressed_variance(np.ones((N, 1, 1)), plan)
+    assert np.allclose(flat, 24 / 96)
+
+
+def test_noise_free_band_is_not_compressed():
+    H0 = WIDE[:, None, None]
+    v = (1e-13 * np.abs(H0).max()) ** 2 * np.ones(H0.shape)
+    assert lc.plan_compression(F, H0, v, min_lines=1024) is None
+
+
+def test_uneven_or_short_bands_are_not_compressed():
+    H, v = _noisy(WIDE[:, None, None], 0.01, 0)
+    assert lc.plan_compression(F, H, v, min_lines=F.size) is None  # not twice as many
+    f = F.copy()
+    f[100] += 0.3 * (f[1] - f[0])
+    assert lc.plan_compression(f, H, v, min_lines=1024) is None
+
+
+def test_decayed_response_is_compressed_within_its_noise():
+    H0 = WIDE[:, None, None]
+    H, v = _noisy(H0, 0.01, 1)
+    plan = lc.plan_compression(F, H, v, min_lines=1024)
+    assert plan is not None and plan.factor >= 16
+    assert _bias(H0, v, plan) < 0.1
+    assert np.array_equal(lc.compress(H, plan).shape, (plan.kept.size, 1, 1))
+
+
+def test_pure_noise_compresses_to_the_fewest_lines():
+    H, v = _noisy(np.zeros((F.size, 2, 1), dtype=complex), 1.0, 2)
+    plan = lc.plan_compression(F, H, v, min_lines=2048)
+    assert plan is not None and plan.factor == F.size // 2048
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_the_check_passes_noise(seed):
+    H, v = _noisy(np.zeros((F.size, 3, 1), dtype=complex), 1.0, 10 + seed)
+    plan = lc.CompressionPlan(n_lines=F.size, factor=32, positive=1024, negative=1024)
+    assert not lc.residual_excess(H, v, plan)
+
+
+def test_a_narrow_weak_mode_limits_the_compression():
+    # a mode 20 lines wide, its peak 20 noise deviations, beside a wide one: the
+    # compression keeps it (no peak search counted it)
+    narrow = _mode(F, 60.0, 20.0, 20 * 0.01)
+    H0 = (WIDE + narrow)[:, None, None]
+    H, v = _noisy(H0, 0.01, 3)
+    plan_wide = lc.plan_compression(F, *_noisy(WIDE[:, None, None], 0.01, 3), min_lines=1024)
+    plan = lc.plan_compression(F, H, v, min_lines=1024)
+    assert plan is not None and plan_wide is not None and plan.factor < plan_wide.factor
+    assert _bias(H0, v, plan) < 1.0
+
+
+def test_a_mode_on_a_small_channel_limits_the_compression():
+    # the same narrow mode on a channel 1000 times smaller (its own noise 1000 times
+    # smaller): the channels are judged each against its own noise
+    narrow = _mode(F, 70.0, 8.0, 50 * 1e-5)
+    H0 = np.stack([WIDE, 1e-3 * WIDE + narrow], axis=1)[:, :, None]
+    sigma = np.array([0.01, 1e-5])[None, :, None]
+    H, v = _noisy(H0, sigma, 4)
+    plan = lc.plan_compression(F, H, v, min_lines=1024)
+    assert plan is None or _bias(H0, v, plan) < 1.0
+    assert plan is None or plan.factor <= 8
+
+
+def test_a_mode_under_the_noise_in_time_is_caught_by_the_check():
+    # 2 lines wide, its peak 10 noise deviations: it rings for the whole record below the
+    # noise of every instant; the residual check sees it
+    faint = _mode(F, 45.0, 2.0, 10 * 0.01)
+    H0 = (WIDE + faint)[:, None, None]
+    H, v = _noisy(H0, 0.01, 5)
+    plan = lc.plan_compression(F, H, v, min_lines=1024)
+    assert plan is None or plan.factor <= 2
+
+
+def test_records_are_compressed_alike():
+    H, v = _noisy(WIDE[:, None, None], 0.01, 6)
+    plan = lc.plan_compression(F, H, v, min_lines=1024)
+    records = np.stack([H, 2 * H, H + 1])
+    out = lc.compress(records, plan)
+    assert out.shape == (3, plan.kept.size, 1, 1)
+    assert np.allclose(out[1], 2 * lc.compress(H, plan))
+
+
+def test_pipeline_compresses_a_fine_band_and_finds_its_modes():
+    # a one-output receptance of three modes over 2^16 lines, 1 % additive noise
+    from automodal import Settings, identify
+    from automodal.core.synthesis import modal_poles
+    from automodal.frfdata import FRFData
+
+    f = np.linspace(1.0, 100.0, 2**16)
+    fn, zeta = np.array([12.3, 37.1, 71.9]), np.array([0.01, 0.02, 0.015])
+    lam = modal_poles(fn, zeta)
+    s = 2j * np.pi * f
+    H0 = sum(1.0 / (s - p) - 1.0 / (s - np.conj(p)) for p in lam) / 1j
+    H, _ = _noisy(H0[:, None, None], 0.01 * np.sqrt(np.mean(np.abs(H0) ** 2)), 7)
+    res = identify(FRFData(frequency=f, frf=H), Settings(seed=1, n_bootstrap=30))
+    assert any("compressed to" in w for w in res.warnings)
+    assert res.n_lines < f.size // 2
+    phys = sorted((m for m in res.modes if m.physical), key=lambda m: m.frequency_hz)
+    assert len(phys) == 3
+    for m, f0, z0 in zip(phys, fn, zeta):
+        assert abs(m.frequency_hz - f0) < 1e-3 * f0
+        assert abs(m.damping_ratio - z0) < 0.05 * z0
