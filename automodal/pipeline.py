@@ -236,11 +236,9 @@ def _compressed(
     if plan is None:
         return data, freq, H, noise
     kept = freq[plan.kept]
-    records = None
-    if data.records is not None:
-        lines = np.isin(data.frequency, freq)
-        if int(lines.sum()) == freq.size:
-            records = line_compression.compress(data.records[:, lines], plan)
+    lines = _file_lines(data, freq)
+    records = None if data.records is None or lines is None else (
+        line_compression.compress(data.records[:, lines], plan))
     df = (freq[-1] - freq[0]) / (freq.size - 1)
     note = (f"{freq.size} lines {df:.3g} Hz apart compressed to {kept.size}"
             f" ({kept[1] - kept[0]:.3g} Hz apart): the impulse response over the band,"
@@ -333,14 +331,20 @@ def _independent_lines(data: FRFData) -> bool:
     return not data.output_only
 
 
+def _file_lines(data: FRFData, freq: np.ndarray) -> np.ndarray | None:
+    """Which of the file's lines are the band's ``freq``, or ``None`` when some of them
+    are not lines of the file (its records and coherence then do not describe them)."""
+    lines = np.isin(data.frequency, freq)
+    return lines if int(lines.sum()) == freq.size else None
+
+
 def _estimate_noise(data: FRFData, freq: np.ndarray, H: np.ndarray) -> NoiseEstimate:
     """The noise model of the analysed band (records, coherence or the data alone)."""
     from automodal.core.noise import averages_from_attributes, estimate_noise
 
-    lines = np.isin(data.frequency, freq)
-    exact = int(lines.sum()) == freq.size  # the band's lines are lines of the file
-    coh = data.coherence[lines] if exact and data.coherence is not None else None
-    rec = data.records[:, lines] if exact and data.records is not None else None
+    lines = _file_lines(data, freq)
+    coh = None if data.coherence is None or lines is None else data.coherence[lines]
+    rec = None if data.records is None or lines is None else data.records[:, lines]
     return estimate_noise(H, coherence=coh, records=rec,
                           n_averages=averages_from_attributes(data.attributes))
 

@@ -81,10 +81,6 @@ TAIL_ERROR = 0.1
 extrapolated past the cut, as a share of that line's noise variance (a third of its noise
 deviation): within what the noise model itself is uncertain by."""
 
-CHUNK_VALUES = 1 << 22
-"""Entries are transformed a few at a time, at most this many values at once (memory)."""
-
-
 @dataclass(frozen=True)
 class CompressionPlan:
     """How a band is compressed: every ``factor``-th of its ``n_lines`` lines is kept, as
@@ -130,31 +126,46 @@ def _entries(a: np.ndarray) -> np.ndarray:
     return a.reshape(a.shape[0], -1)
 
 
-def _chunks(n_lines: int, n_entries: int) -> list[slice]:
-    """Slices of the entries to transform together (:data:`CHUNK_VALUES`)."""
-    step = max(1, CHUNK_VALUES // max(n_lines, 1))
-    return [slice(i, min(i + step, n_entries)) for i in range(0, n_entries, step)]
-
-
-def _edge_cubic(H: np.ndarray) -> np.ndarray:
-    """The cubic (in the line index) that takes each entry's value and slope at the band's
-    first line and one line past its last (straight-line fits over :data:`EDGE_LINES`
-    lines at each end), ``(N, C)``: the FRF less it is continuous, with its slope, where the
-    DFT joins the band's ends."""
+def _edge_ends(H: np.ndarray) -> np.ndarray:
+    """Each entry's value and slope (per line) at the band's first line and one line past
+    its last, from straight-line fits over :data:`EDGE_LINES` lines at each end,
+    ``(4, C)``: the ends the cubic of :func:`_edge_cubic` joins."""
     N = H.shape[0]
     m = min(EDGE_LINES, N // 4)
     k = np.arange(m, dtype=float)
-    A = np.column_stack([np.ones(m), k - (m - 1) / 2.0])
-    pinv = np.linalg.pinv(A)
+    pinv = np.linalg.pinv(np.column_stack([np.ones(m), k - (m - 1) / 2.0]))
     lo = pinv @ H[:m]  # value at the middle of the first m lines, slope per line
     hi = pinv @ H[N - m:]
     c = (m - 1) / 2.0
-    v0, s0 = lo[0] - c * lo[1], lo[1]  # at line 0
-    v1, s1 = hi[0] + (c + 1.0) * hi[1], hi[1]  # at line N (one past the last)
-    x = (np.arange(N, dtype=float) / N)[:, None]
+    return np.stack([lo[0] - c * lo[1], lo[1], hi[0] + (c + 1.0) * hi[1], hi[1]])
+
+
+def _edge_cubic(ends: np.ndarray, n_lines: int, lines: np.ndarray) -> np.ndarray:
+    """The cubic (in the line index) through :func:`_edge_ends`'s values and slopes, at
+    ``lines``, ``(lines, C)``: the FRF less it is continuous, with its slope, where the
+    DFT joins the band's ends."""
+    v0, s0, v1, s1 = ends
+    x = (np.asarray(lines, dtype=float) / n_lines)[:, None]
     h00, h10 = 2 * x**3 - 3 * x**2 + 1, x**3 - 2 * x**2 + x
     h01, h11 = -2 * x**3 + 3 * x**2, x**3 - x**2
-    return h00 * v0 + h10 * (s0 * N) + h01 * v1 + h11 * (s1 * N)
+    return h00 * v0 + h10 * (s0 * n_lines) + h01 * v1 + h11 * (s1 * n_lines)
+
+
+@dataclass(frozen=True)
+class _Response:
+    """A band's impulse response: the inverse DFT of its FRFs less their edge cubic,
+    ``h`` ``(N, C)``, and the cubic's ends (:func:`_edge_ends`). Computed once, it serves
+    the extent, every factor's check and the compression."""
+
+    h: np.ndarray
+    ends: np.ndarray
+
+    @classmethod
+    def of(cls, H: np.ndarray) -> _Response:
+        Hc = _entries(np.asarray(H))
+        N = Hc.shape[0]
+        ends = _edge_ends(Hc)
+        return cls(h=np.fft.ifft(Hc - _edge_cubic(ends, N, np.arange(N)), axis=0), ends=ends)
 
 
 def _gamma_quantile(shape: np.ndarray | float, tail: float) -> np.ndarray:
@@ -222,30 +233,32 @@ def response_tails(H: np.ndarray, variance: np.ndarray) -> list[Tail]:
     list of Tail
         One per entry and side where a block stands out.
     """
-    Hc, vc = _entries(np.asarray(H)), _entries(np.asarray(variance, dtype=float))
-    N, C = Hc.shape
+    return _tails(_Response.of(H), _entries(np.asarray(variance, dtype=float)))
+
+
+def _tails(response: _Response, variance: np.ndarray) -> list[Tail]:
+    """:func:`response_tails` of a band's response (``variance`` ``(N, C)``)."""
+    N, C = response.h.shape
     half = N // 2
     n_blocks = max(1, min(MAX_BLOCKS // 2, half // MIN_BLOCK))
     L = max(1, half // n_blocks)
     limit = float(_gamma_quantile(L, FALSE_ALARM / (2 * n_blocks * C))) / L
     centre = (np.arange(n_blocks) + 0.5) * L
+    e = np.abs(response.h) ** 2
+    level = np.mean(variance, axis=0) / N  # a line's noise spread over the samples
+    sides = (e[: n_blocks * L].reshape(n_blocks, L, -1).mean(axis=1),
+             e[::-1][: n_blocks * L].reshape(n_blocks, L, -1).mean(axis=1))
+    # the record's quiet middle (the last quarter of each side's blocks), where it is below
+    # the noise model's level: the lower level is the cautious one
+    quiet = np.median(np.concatenate([b[-max(1, n_blocks // 4):] for b in sides]), axis=0)
+    level = np.minimum(level, quiet)
+    level = np.where(level > 0, level, np.inf)
     tails: list[Tail] = []
-    for sl in _chunks(N, C):
-        r = Hc[:, sl] - _edge_cubic(Hc[:, sl])
-        e = np.abs(np.fft.ifft(r, axis=0)) ** 2
-        level = np.mean(vc[:, sl], axis=0) / N  # a line's noise spread over the samples
-        sides = (e[: n_blocks * L].reshape(n_blocks, L, -1).mean(axis=1),
-                 e[::-1][: n_blocks * L].reshape(n_blocks, L, -1).mean(axis=1))
-        # the record's quiet middle (the last quarter of each side's blocks), where it is
-        # below the noise model's level: the lower level is the cautious one
-        quiet = np.median(np.concatenate([b[-max(1, n_blocks // 4):] for b in sides]), axis=0)
-        level = np.minimum(level, quiet)
-        level = np.where(level > 0, level, np.inf)
-        for side, blocks in enumerate(sides):
-            x = blocks / level[None, :]
-            for c in np.flatnonzero(np.any(x > limit, axis=0)):
-                last = int(np.flatnonzero(x[:, c] > limit)[-1])
-                tails.append(_tail(side, x[: last + 1, c] - 1.0, centre[: last + 1], L))
+    for side, blocks in enumerate(sides):
+        x = blocks / level[None, :]
+        for c in np.flatnonzero(np.any(x > limit, axis=0)):
+            last = int(np.flatnonzero(x[:, c] > limit)[-1])
+            tails.append(_tail(side, x[: last + 1, c] - 1.0, centre[: last + 1], L))
     return tails
 
 
@@ -255,10 +268,10 @@ def _tail(side: int, excess: np.ndarray, centre: np.ndarray, L: int) -> Tail:
     them."""
     last = excess.size - 1
     end = (last + 1) * L
-    sel = np.arange(last // 2, last + 1)
-    sel = sel[excess[sel] > 0]
     if last == 0:
         return Tail(side=side, end=end, excess=float(excess[0]), rate=np.inf)
+    sel = np.arange(last // 2, last + 1)
+    sel = sel[excess[sel] > 0]
     if sel.size < 2:
         return Tail(side=side, end=end, excess=float(excess[last]), rate=0.0)
     slope, intercept = np.polyfit(centre[sel], np.log(excess[sel]), 1)
@@ -266,41 +279,30 @@ def _tail(side: int, excess: np.ndarray, centre: np.ndarray, L: int) -> Tail:
                 rate=float(max(-slope, 0.0)))
 
 
-def _windowed(H: np.ndarray, plan: CompressionPlan) -> np.ndarray:
-    """The FRF of the impulse response cut by ``plan``'s window, at every line,
-    ``(N, C)``."""
-    Hc = _entries(np.asarray(H))
-    out = np.empty(Hc.shape, dtype=complex)
-    w = plan.window()[:, None]
-    for sl in _chunks(*Hc.shape):
-        trend = _edge_cubic(Hc[:, sl])
-        out[:, sl] = np.fft.fft(np.fft.ifft(Hc[:, sl] - trend, axis=0) * w, axis=0) + trend
-    return out
-
-
 def residual_excess(H: np.ndarray, variance: np.ndarray, plan: CompressionPlan) -> bool:
     """Whether the lines the cut leaves unexplained hold more than noise (step 3 of the
     module's rule): ``True`` rejects the plan.
 
-    The residual ``H - (the window's FRF)`` at every line has the noise variance times
-    ``1 - W / N`` (``W`` the samples kept). Its squared magnitude over that, summed over
-    ``s = 1, 2, 4, ...`` (up to the factor) neighbouring lines of every entry, is compared
-    with the Gamma(``s``) quantile of :data:`FALSE_ALARM` shared by all the sums.
+    The residual ``H - (the window's FRF)`` (the DFT of the response outside the window) at
+    every line has the noise variance times ``1 - W / N`` (``W`` the samples kept). Its
+    squared magnitude over that, summed over ``s = 1, 2, 4, ...`` (up to the factor)
+    neighbouring lines of every entry, is compared with the Gamma(``s``) quantile of
+    :data:`FALSE_ALARM` shared by all the sums.
     """
-    Hc, vc = _entries(np.asarray(H)), _entries(np.asarray(variance, dtype=float))
-    N, C = Hc.shape
+    return _excess(_Response.of(H), _entries(np.asarray(variance, dtype=float)), plan)
+
+
+def _excess(response: _Response, variance: np.ndarray, plan: CompressionPlan) -> bool:
+    """:func:`residual_excess` of a band's response (``variance`` ``(N, C)``)."""
+    N, C = response.h.shape
     kept = (plan.positive + plan.negative) / N
     scales = [1 << i for i in range(int(np.log2(plan.factor)) + 1)]
-    tail = FALSE_ALARM / (len(scales) * N * C)
-    limits = _gamma_quantile(np.asarray(scales, dtype=float), tail)
-    G = _windowed(Hc, plan)
-    for sl in _chunks(N, C):
-        x = np.abs(Hc[:, sl] - G[:, sl]) ** 2 / (vc[:, sl] * (1.0 - kept))
-        c = np.concatenate([np.zeros((1, x.shape[1])), np.cumsum(x, axis=0)])
-        for s, limit in zip(scales, limits):
-            if s <= N and np.max(c[s:] - c[:-s]) > limit:
-                return True
-    return False
+    limits = _gamma_quantile(np.asarray(scales, dtype=float),
+                             FALSE_ALARM / (len(scales) * N * C))
+    outside = np.fft.fft(response.h * (1.0 - plan.window())[:, None], axis=0)
+    x = np.abs(outside) ** 2 / (variance * (1.0 - kept))
+    c = np.concatenate([np.zeros((1, C)), np.cumsum(x, axis=0)])
+    return any(s <= N and np.max(c[s:] - c[:-s]) > limit for s, limit in zip(scales, limits))
 
 
 def plan_compression(frequency: np.ndarray, H: np.ndarray, variance: np.ndarray,
@@ -323,7 +325,9 @@ def plan_compression(frequency: np.ndarray, H: np.ndarray, variance: np.ndarray,
     N = int(np.shape(H)[0])
     if N <= 2 * min_lines or not is_uniform(frequency):
         return None
-    tails = response_tails(H, variance)
+    response = _Response.of(H)
+    v = _entries(np.asarray(variance, dtype=float))
+    tails = _tails(response, v)
     positive = max((t.end for t in tails if t.side == 0), default=0)
     negative = max((t.end for t in tails if t.side == 1), default=0)
     factor = N // max(2 * (positive + negative), min_lines)
@@ -333,7 +337,7 @@ def plan_compression(frequency: np.ndarray, H: np.ndarray, variance: np.ndarray,
         pos = min(W - 1, max(1, int(round(W * (positive + 1) / (positive + negative + 2)))))
         plan = CompressionPlan(n_lines=N, factor=factor, positive=pos, negative=W - pos)
         if all(t.cut_allowed(pos if t.side == 0 else W - pos, W) for t in tails) and (
-                not residual_excess(H, variance, plan)):
+                not _excess(response, v, plan)):
             return plan
         factor //= 2
     return None
@@ -345,7 +349,10 @@ def compress(H: np.ndarray, plan: CompressionPlan) -> np.ndarray:
     a = np.asarray(H)
     if a.shape[0] != plan.n_lines:  # records: one set of FRFs each
         return np.stack([compress(r, plan) for r in a])
-    return _windowed(a, plan)[plan.kept].reshape((plan.kept.size,) + a.shape[1:])
+    response = _Response.of(a)
+    cut = np.fft.fft(response.h * plan.window()[:, None], axis=0)[plan.kept]
+    out = cut + _edge_cubic(response.ends, plan.n_lines, plan.kept)
+    return out.reshape((plan.kept.size,) + a.shape[1:])
 
 
 def compressed_variance(variance: np.ndarray, plan: CompressionPlan) -> np.ndarray:
@@ -357,9 +364,7 @@ def compressed_variance(variance: np.ndarray, plan: CompressionPlan) -> np.ndarr
     v = _entries(np.asarray(variance, dtype=float))
     kernel = np.abs(np.fft.fft(plan.window()) / plan.n_lines) ** 2
     K = np.fft.fft(kernel)[:, None]
-    out = np.empty((plan.kept.size, v.shape[1]))
-    for sl in _chunks(*v.shape):
-        out[:, sl] = np.fft.ifft(np.fft.fft(v[:, sl], axis=0) * K, axis=0).real[plan.kept]
+    out = np.fft.ifft(np.fft.fft(v, axis=0) * K, axis=0).real[plan.kept]
     floor = np.min(v, axis=0) * (plan.positive + plan.negative) / plan.n_lines
     out = np.maximum(out, floor[None, :])  # rounding of the convolution, never below
     return out.reshape((plan.kept.size,) + np.shape(variance)[1:])
