@@ -189,7 +189,7 @@ def prepare(
         warnings.append(f"no noise model ({exc}): envelope line weights and RMS scales,"
                         " bootstrap intervals")
     if noise is not None and not operational:
-        data, freq, H, noise = _compressed(data, freq, H, noise, warnings)
+        data, freq, H, noise = _compressed(data, freq, H, noise, warnings, s.max_order)
     H, reciprocal = apply_reciprocity(H, warnings)
     pole_map = pole_map_of(data)
     if pole_map.shift > 2.0 * np.pi * freq[-1]:
@@ -223,16 +223,18 @@ def prepare(
 
 def _compressed(
     data: FRFData, freq: np.ndarray, H: np.ndarray, noise: NoiseEstimate,
-    warnings: list[str],
+    warnings: list[str], max_order: int | None,
 ) -> tuple[FRFData, np.ndarray, np.ndarray, NoiseEstimate]:
     """The band in fewer lines where its responses end long before its lines' record does
     (:mod:`automodal.core.line_compression`): ``data`` (the band's lines only, its records
     compressed alike and its coherence, already read into ``noise``, left out), lines, FRFs
     and noise (the variance propagated; the levels stay the measurement's); or all as they
-    are."""
+    are. At least the lines every automatic order needs are kept
+    (:func:`automodal.core.order.lines_for_orders`; ``max_order``: the settings')."""
     from automodal.core import line_compression
 
-    plan = line_compression.plan_compression(freq, H, noise.variance)
+    plan = line_compression.plan_compression(
+        freq, H, noise.variance, order.lines_for_orders(*H.shape[1:], max_order))
     if plan is None:
         return data, freq, H, noise
     kept = freq[plan.kept]

@@ -287,3 +287,18 @@ def test_misfit_scan_is_the_same_on_any_number_of_workers():
         for (_, lam1, cv1), (_, lam, cv) in zip(models1, models):
             np.testing.assert_array_equal(lam1, lam)
             np.testing.assert_array_equal(cv1, cv)
+
+
+@pytest.mark.parametrize("ny, nu", [(1, 1), (6, 1), (35, 3), (3, 74), (10, 2)])
+def test_lines_for_orders_is_the_fewest_that_keep_every_automatic_order(ny, nu):
+    from automodal.core import subspace
+    from automodal.core.order import MAX_REFERENCE_ORDER, block_row_budget, lines_for_orders
+
+    n = lines_for_orders(ny, nu)
+
+    def holds(lines: int) -> bool:
+        return all(block_row_budget(lines, a, b) >= subspace.scan_block_rows(
+            MAX_REFERENCE_ORDER, a) for a, b in ((ny, nu), (nu, ny)))
+
+    assert holds(n) and not holds(n - 1)
+    assert lines_for_orders(ny, nu, max_order=2 * MAX_REFERENCE_ORDER) > n

@@ -23,15 +23,22 @@ residual where the cut loses it):
    the lines, or less where the record's quiet middle is quieter: the lower is the
    cautious one). The response is seen as far as a block stands out of the noise at a
    familywise false-alarm probability of :data:`FALSE_ALARM`, and its decay there is
-   fitted.
+   fitted. A block's noise energy follows the noise model: white in time where the
+   variance is flat over the lines, correlated over about a resonance's decay where it
+   follows the response (proportional or H1 noise), and then far more scattered
+   (:func:`block_energy_shape`); taken as white, such noise is seen as response over the
+   whole record and no band is compressed.
 2. **The cut** keeps at least twice that on either side of time zero, and as much more as
    the fitted decay needs for the response cut off to make an error below
    :data:`TAIL_ERROR` of a compressed line's noise variance (:meth:`Tail.cut_allowed`: a
    response still stands below the noise after it is last seen, and its sum over the lines
-   is coherent). At least :data:`MIN_LINES` lines are kept.
+   is coherent). At least the lines the identification's orders need are kept (the
+   caller's ``min_lines``: :func:`automodal.core.order.lines_for_orders`), and only bands
+   of more than twice as many are compressed.
 3. **The check** (:func:`residual_excess`): the lines the window's FRF leaves unexplained
    (the response outside the window, plus noise) must be noise: their squared residual over
-   the noise variance, summed over 1, 2, 4, ... up to ``K`` neighbouring lines of every
+   its noise variance (:func:`_residual_variance`, exact for noise that varies over the
+   lines), summed over 1, 2, 4, ... up to ``K`` neighbouring lines of every
    entry, must stay below the Gamma quantile of :data:`FALSE_ALARM` over all these tests. A
    feature the blocks missed (a weak mode whose ringing lasts the record: under the noise at
    every instant, a peak of a few lines in frequency) fails it, and ``K`` is halved until it
@@ -47,14 +54,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-
-MIN_LINES = 16_384
-"""Fewest lines a compression leaves, and only bands of more than twice as many are
-compressed. The identification's time grows with the lines (a one-output band of three
-modes and 1 % noise: 2^14 lines about 2 s through the command line, 2^20 lines, decimated
-to 200 000, 21 s and 1.6 GB; ``benchmarks/results_fine_lines.md``): up to this many lines
-the time is that of the family's files, and below twice this many a compression would save
-at most half of it."""
 
 FALSE_ALARM = 1e-3
 """Familywise probability that pure noise makes `response_tails` see response in a
@@ -242,24 +241,87 @@ def _tails(response: _Response, variance: np.ndarray) -> list[Tail]:
     half = N // 2
     n_blocks = max(1, min(MAX_BLOCKS // 2, half // MIN_BLOCK))
     L = max(1, half // n_blocks)
-    limit = float(_gamma_quantile(L, FALSE_ALARM / (2 * n_blocks * C))) / L
+    shape = block_energy_shape(variance, L)
+    # a block's energy over the noise's, when it holds noise only: Gamma(shape, 1 / shape)
+    limit = _gamma_quantile(shape, FALSE_ALARM / (2 * n_blocks * C)) / shape
     centre = (np.arange(n_blocks) + 0.5) * L
     e = np.abs(response.h) ** 2
     level = np.mean(variance, axis=0) / N  # a line's noise spread over the samples
     sides = (e[: n_blocks * L].reshape(n_blocks, L, -1).mean(axis=1),
              e[::-1][: n_blocks * L].reshape(n_blocks, L, -1).mean(axis=1))
     # the record's quiet middle (the last quarter of each side's blocks), where it is below
-    # the noise model's level: the lower level is the cautious one
+    # the noise model's level: the lower level is the cautious one. The blocks' median is
+    # the Gamma law's, below its mean where the noise is correlated across a block
     quiet = np.median(np.concatenate([b[-max(1, n_blocks // 4):] for b in sides]), axis=0)
-    level = np.minimum(level, quiet)
+    level = np.minimum(level, quiet / _gamma_median(shape))
     level = np.where(level > 0, level, np.inf)
     tails: list[Tail] = []
     for side, blocks in enumerate(sides):
         x = blocks / level[None, :]
-        for c in np.flatnonzero(np.any(x > limit, axis=0)):
-            last = int(np.flatnonzero(x[:, c] > limit)[-1])
+        for c in np.flatnonzero(np.any(x > limit[None, :], axis=0)):
+            last = int(np.flatnonzero(x[:, c] > limit[c])[-1])
             tails.append(_tail(side, x[: last + 1, c] - 1.0, centre[: last + 1], L))
     return tails
+
+
+POWER_ITERATIONS = 30
+"""Power iterations of :func:`block_energy_shape` (from a fixed start: the same numbers on
+every run). Its Rayleigh quotient never exceeds the largest eigenvalue, so an iteration
+short of convergence gives a larger shape, a lower limit and a longer response: the
+cautious side."""
+
+
+def block_energy_shape(variance: np.ndarray, L: int) -> np.ndarray:
+    """The Gamma shape of a block's noise energy in the impulse response, per entry.
+
+    Noise independent from line to line, of variance ``v_k`` at line ``k`` of ``N``, is
+    stationary in the inverse DFT, with covariance ``r(d) = ifft(v)[d] / N`` between
+    samples ``d`` apart: white where ``v`` is flat, correlated over about a resonance's
+    decay where the noise follows the response (proportional or H1 noise). The energy of
+    ``L`` consecutive samples is then ``sum lambda_i X_i``, ``X_i`` standard exponential
+    and ``lambda_i`` the eigenvalues of their Toeplitz covariance; a Gamma law of the same
+    mean whose tail decays as the largest term's, shape ``L r(0) / lambda_max``, is the
+    cautious one (``L`` for white noise, down to 1 where the block's samples move as one).
+
+    Parameters
+    ----------
+    variance : ndarray, shape (N, C)
+        Each entry's noise variance at the lines.
+    L : int
+        Samples in a block.
+
+    Returns
+    -------
+    ndarray, shape (C,)
+        The shape, in ``[1, L]``.
+    """
+    v = np.asarray(variance, dtype=float)
+    N, C = v.shape
+    r = np.fft.ifft(v, axis=0)[:L] / N  # r(d), d = 0 .. L - 1; r(-d) = conj r(d)
+    r0 = r[0].real
+    if L == 1:
+        return np.ones(C)
+    # the covariance's product with a block vector: its circulant embedding over 2 L
+    c = np.concatenate([r, np.zeros((1, C)), np.conj(r[:0:-1])])
+    spectrum = np.fft.fft(c, axis=0)
+    u = np.exp(2j * np.pi * np.random.default_rng(0).random((L, 1))) * np.ones((1, C))
+    top = r0.copy()
+    for _ in range(POWER_ITERATIONS):
+        u = u / np.linalg.norm(u, axis=0)
+        Ru = np.fft.ifft(spectrum * np.fft.fft(u, n=2 * L, axis=0), axis=0)[:L]
+        top = np.sum(np.conj(u) * Ru, axis=0).real
+        u = Ru
+    positive = r0 > 0
+    shape = np.full(C, float(L))
+    shape[positive] = L * r0[positive] / np.maximum(top[positive], r0[positive])
+    return np.clip(shape, 1.0, float(L))
+
+
+def _gamma_median(shape: np.ndarray) -> np.ndarray:
+    """Median of Gamma(``shape``, ``1 / shape``) (mean 1)."""
+    from scipy.special import gammaincinv
+
+    return np.asarray(gammaincinv(shape, 0.5), dtype=float) / shape
 
 
 def _tail(side: int, excess: np.ndarray, centre: np.ndarray, L: int) -> Tail:
@@ -295,18 +357,38 @@ def residual_excess(H: np.ndarray, variance: np.ndarray, plan: CompressionPlan) 
 def _excess(response: _Response, variance: np.ndarray, plan: CompressionPlan) -> bool:
     """:func:`residual_excess` of a band's response (``variance`` ``(N, C)``)."""
     N, C = response.h.shape
-    kept = (plan.positive + plan.negative) / N
     scales = [1 << i for i in range(int(np.log2(plan.factor)) + 1)]
     limits = _gamma_quantile(np.asarray(scales, dtype=float),
                              FALSE_ALARM / (len(scales) * N * C))
     outside = np.fft.fft(response.h * (1.0 - plan.window())[:, None], axis=0)
-    x = np.abs(outside) ** 2 / (variance * (1.0 - kept))
+    x = np.abs(outside) ** 2 / _residual_variance(variance, plan)
     c = np.concatenate([np.zeros((1, C)), np.cumsum(x, axis=0)])
     return any(s <= N and np.max(c[s:] - c[:-s]) > limit for s, limit in zip(scales, limits))
 
 
+def _window_convolved(variance: np.ndarray, plan: CompressionPlan) -> np.ndarray:
+    """``sum_j |c_{k-j}|^2 v_j`` at every line ``k`` (``variance`` ``(N, C)``), ``c`` the
+    cut's kernel (the DFT of the window over ``N``, ``c_0 = W / N``): the noise variance of
+    the window's FRF at each line."""
+    kernel = np.abs(np.fft.fft(plan.window()) / plan.n_lines) ** 2
+    return np.fft.ifft(np.fft.fft(variance, axis=0) * np.fft.fft(kernel)[:, None], axis=0).real
+
+
+def _residual_variance(variance: np.ndarray, plan: CompressionPlan) -> np.ndarray:
+    """The noise variance of the residual the cut leaves at every line (``variance``
+    ``(N, C)``): the line's noise less the window's FRF of it, ``v_k (1 - 2 W / N) +
+    sum_j |c_{k-j}|^2 v_j`` (:func:`_window_convolved`). Where ``v`` is flat over the
+    kernel this is ``v_k (1 - W / N)``; where the noise follows a resonance (proportional
+    or H1 noise) it is not, and the flat form reads the difference as response."""
+    kept = (plan.positive + plan.negative) / plan.n_lines
+    out = variance * (1.0 - 2.0 * kept) + _window_convolved(variance, plan)
+    # the residual's coefficients have squared norm 1 - W / N: never below that of the
+    # smallest variance (rounding of the convolution)
+    return np.maximum(out, np.min(variance, axis=0)[None, :] * (1.0 - kept))
+
+
 def plan_compression(frequency: np.ndarray, H: np.ndarray, variance: np.ndarray,
-                     min_lines: int = MIN_LINES) -> CompressionPlan | None:
+                     min_lines: int) -> CompressionPlan | None:
     """The compression of a band by the module's rule, or ``None`` (lines not evenly
     spaced, at most ``2 min_lines`` of them, a response that lasts too long, or no factor
     whose cut passes :func:`residual_excess`).
@@ -320,7 +402,7 @@ def plan_compression(frequency: np.ndarray, H: np.ndarray, variance: np.ndarray,
     variance : ndarray, shape (N, ny, nu)
         Their noise variance (> 0).
     min_lines : int
-        Fewest lines kept.
+        Fewest lines kept (:func:`automodal.core.order.lines_for_orders`).
     """
     N = int(np.shape(H)[0])
     if N <= 2 * min_lines or not is_uniform(frequency):
@@ -362,9 +444,7 @@ def compressed_variance(variance: np.ndarray, plan: CompressionPlan) -> np.ndarr
     variance is the circular convolution of ``|c|^2`` with ``variance`` (``sum |c|^2 =
     W / N``, about ``1 / factor``)."""
     v = _entries(np.asarray(variance, dtype=float))
-    kernel = np.abs(np.fft.fft(plan.window()) / plan.n_lines) ** 2
-    K = np.fft.fft(kernel)[:, None]
-    out = np.fft.ifft(np.fft.fft(v, axis=0) * K, axis=0).real[plan.kept]
+    out = _window_convolved(v, plan)[plan.kept]
     floor = np.min(v, axis=0) * (plan.positive + plan.negative) / plan.n_lines
     out = np.maximum(out, floor[None, :])  # rounding of the convolution, never below
     return out.reshape((plan.kept.size,) + np.shape(variance)[1:])

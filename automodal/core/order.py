@@ -359,6 +359,20 @@ def lines_needed(n: int, ny: int, nu: int) -> int:
     return int(np.ceil(q * (nu + ny) / (2.0 * BOOTSTRAP_LINE_FRACTION * nu)))
 
 
+def lines_for_orders(ny: int, nu: int, max_order: int | None = None) -> int:
+    """Fewest frequency lines with which every automatic order is open to a band of ``ny``
+    outputs and ``nu`` inputs: a replicate still holds the order scan's block rows
+    (:func:`automodal.core.subspace.scan_block_rows`) at the highest reference order
+    (:data:`MAX_REFERENCE_ORDER`, or ``max_order`` when given), the rows of the second
+    analysis; in either orientation, as reciprocity may swap outputs and inputs. A band
+    reduced to fewer lines (:mod:`automodal.core.line_compression`) could lose orders the
+    data need."""
+    n = MAX_REFERENCE_ORDER if max_order is None else max(int(max_order), 2)
+    return max(int(np.ceil(subspace.scan_block_rows(n, a) * (a + b)
+                           / (2.0 * BOOTSTRAP_LINE_FRACTION * b)))
+               for a, b in ((ny, nu), (nu, ny)))
+
+
 def count_peaks(H: np.ndarray, window: int = 5, variance: np.ndarray | None = None) -> int:
     """Resonance-like peaks of the mean magnitude over channels (sizes the order scan):
     the number of :func:`peak_lines`."""
