@@ -346,8 +346,9 @@ def residual_excess(H: np.ndarray, variance: np.ndarray, plan: CompressionPlan) 
     module's rule): ``True`` rejects the plan.
 
     The residual ``H - (the window's FRF)`` (the DFT of the response outside the window) at
-    every line has the noise variance times ``1 - W / N`` (``W`` the samples kept). Its
-    squared magnitude over that, summed over ``s = 1, 2, 4, ...`` (up to the factor)
+    every line has the noise variance of :func:`_residual_variance` (about the line's
+    variance times ``1 - W / N``, ``W`` the samples kept, where it is flat over the cut's
+    kernel). Its squared magnitude over that, summed over ``s = 1, 2, 4, ...`` (up to the factor)
     neighbouring lines of every entry, is compared with the Gamma(``s``) quantile of
     :data:`FALSE_ALARM` shared by all the sums.
     """
