@@ -34,7 +34,9 @@ residual where the cut loses it):
    response still stands below the noise after it is last seen, and its sum over the lines
    is coherent). At least the lines the identification's orders need are kept (the
    caller's ``min_lines``: :func:`automodal.core.order.lines_for_orders`), and only bands
-   of more than twice as many are compressed.
+   of more than twice as many are compressed; and every resonance seen keeps
+   :data:`KEPT_LINES_PER_BAND` kept lines across its half-power band (its width from the
+   decay fitted where it is last seen).
 3. **The check** (:func:`residual_excess`): the lines the window's FRF leaves unexplained
    (the response outside the window, plus noise) must be noise: their squared residual over
    its noise variance (:func:`_residual_variance`, exact for noise that varies over the
@@ -79,6 +81,16 @@ TAIL_ERROR = 0.1
 """Largest error the cut may make at a compressed line, from the response's decay
 extrapolated past the cut, as a share of that line's noise variance (a third of its noise
 deviation): within what the noise model itself is uncertain by."""
+
+KEPT_LINES_PER_BAND = 6.0
+"""Fewest kept lines across the half-power band of every resonance the tail rule sees (its
+width from the decay fitted there: ``N rate / (2 pi)`` lines). Fewer lines per resonance keep
+its information but not the estimators' precision: the noisy SISO accelerance of
+``automodal simulate`` (6000 lines, 10 % additive noise, its lowest mode 17.7 lines wide)
+kept compressed by 10, 5, 4, 3 and 2 left that mode 1.7, 3.5, 4.3, 5.8 and 8.7 lines wide and
+its frequency interval 12, 3.0, 1.9, 1.1 and 0.9 times as wide as the whole band's (damping
+4.2, 2.9, 1.5, 1.3, 1.3)."""
+
 
 @dataclass(frozen=True)
 class CompressionPlan:
@@ -413,7 +425,7 @@ def plan_compression(frequency: np.ndarray, H: np.ndarray, variance: np.ndarray,
     tails = _tails(response, v)
     positive = max((t.end for t in tails if t.side == 0), default=0)
     negative = max((t.end for t in tails if t.side == 1), default=0)
-    factor = N // max(2 * (positive + negative), min_lines)
+    factor = min(N // max(2 * (positive + negative), min_lines), _resolution_cap(tails, N))
     while factor >= 2:
         W = N // factor
         # the samples kept are shared in proportion to the two extents
@@ -424,6 +436,16 @@ def plan_compression(frequency: np.ndarray, H: np.ndarray, variance: np.ndarray,
             return plan
         factor //= 2
     return None
+
+
+def _resolution_cap(tails: list[Tail], N: int) -> int:
+    """The largest factor that leaves each resonance the ``tails`` see at least
+    :data:`KEPT_LINES_PER_BAND` kept lines across its half-power band: an energy decaying at
+    ``rate`` per sample rings at ``rate / 2`` per sample in amplitude, a half-power band of
+    ``N rate / (2 pi)`` of the ``N`` lines (a tail that fell within one block, ``rate``
+    infinite, sets no cap; one with no decay fitted is refused by the cut anyway)."""
+    widths = [N * t.rate / (2.0 * np.pi) for t in tails if np.isfinite(t.rate) and t.rate > 0]
+    return N if not widths else int(min(widths) // KEPT_LINES_PER_BAND)
 
 
 def compress(H: np.ndarray, plan: CompressionPlan) -> np.ndarray:
