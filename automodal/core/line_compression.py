@@ -270,7 +270,7 @@ def _tails(response: _Response, variance: np.ndarray) -> list[Tail]:
     tails: list[Tail] = []
     for side, blocks in enumerate(sides):
         x = blocks / level[None, :]
-        for c in np.flatnonzero(np.any(x > limit[None, :], axis=0)):
+        for c in np.flatnonzero(np.any(x > limit, axis=0)):
             last = int(np.flatnonzero(x[:, c] > limit[c])[-1])
             tails.append(_tail(side, x[: last + 1, c] - 1.0, centre[: last + 1], L))
     return tails
@@ -317,7 +317,6 @@ def block_energy_shape(variance: np.ndarray, L: int) -> np.ndarray:
     c = np.concatenate([r, np.zeros((1, C)), np.conj(r[:0:-1])])
     spectrum = np.fft.fft(c, axis=0)
     u = np.exp(2j * np.pi * np.random.default_rng(0).random((L, 1))) * np.ones((1, C))
-    top = r0.copy()
     for _ in range(POWER_ITERATIONS):
         u = u / np.linalg.norm(u, axis=0)
         Ru = np.fft.ifft(spectrum * np.fft.fft(u, n=2 * L, axis=0), axis=0)[:L]
@@ -325,7 +324,7 @@ def block_energy_shape(variance: np.ndarray, L: int) -> np.ndarray:
         u = Ru
     positive = r0 > 0
     shape = np.full(C, float(L))
-    shape[positive] = L * r0[positive] / np.maximum(top[positive], r0[positive])
+    shape[positive] = L * r0[positive] / top[positive]
     return np.clip(shape, 1.0, float(L))
 
 

@@ -355,7 +355,12 @@ def order_limit(n_lines: int, ny: int, nu: int) -> int:
 
 def lines_needed(n: int, ny: int, nu: int) -> int:
     """Fewest frequency lines for which :func:`order_limit` allows order ``n``."""
-    q = subspace.block_rows(n, ny)
+    return _lines_for_rows(subspace.block_rows(n, ny), ny, nu)
+
+
+def _lines_for_rows(q: int, ny: int, nu: int) -> int:
+    """Fewest frequency lines whose replicates hold ``q`` block rows
+    (:func:`block_row_budget` inverted)."""
     return int(np.ceil(q * (nu + ny) / (2.0 * BOOTSTRAP_LINE_FRACTION * nu)))
 
 
@@ -368,8 +373,7 @@ def lines_for_orders(ny: int, nu: int, max_order: int | None = None) -> int:
     reduced to fewer lines (:mod:`automodal.core.line_compression`) could lose orders the
     data need."""
     n = MAX_REFERENCE_ORDER if max_order is None else max(int(max_order), 2)
-    return max(int(np.ceil(subspace.scan_block_rows(n, a) * (a + b)
-                           / (2.0 * BOOTSTRAP_LINE_FRACTION * b)))
+    return max(_lines_for_rows(subspace.scan_block_rows(n, a), a, b)
                for a, b in ((ny, nu), (nu, ny)))
 
 
