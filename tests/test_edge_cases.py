@@ -393,6 +393,28 @@ def test_a_file_that_hangs_the_hdf5_library_is_refused_after_the_time_limit(tmp_
     assert sorted(p.name for p in tmp_path.iterdir()) == ["hangs.h5"]
 
 
+def test_the_time_limit_counts_from_the_start_while_the_caller_works(tmp_path,
+                                                                     monkeypatch):
+    """A run imports its analysis while its file is read (``start_reading``): the reading's
+    limit still runs from its start, and the data come when waited for."""
+    import base64
+    import zlib
+
+    from automodal.io.readers import start_reading
+
+    path = tmp_path / "hangs.h5"
+    path.write_bytes(zlib.decompress(base64.b64decode(HANGING_HDF5)))
+    monkeypatch.setenv("AUTOMODAL_READ_TIMEOUT_S", "1.5")
+    started = time.perf_counter()
+    pending = start_reading(path)
+    time.sleep(1.0)  # the caller's own work
+    with pytest.raises(InputError, match="reading did not finish within 1.5 s"):
+        pending()
+    assert time.perf_counter() - started < 2.4
+    data = start_reading(SAMPLE)()
+    assert np.array_equal(data.frf, read_frf(SAMPLE).frf)
+
+
 def test_a_reader_that_crashes_is_a_refusal_not_a_dead_process(tmp_path, monkeypatch):
     import automodal.io.readers as readers
 

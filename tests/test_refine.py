@@ -109,6 +109,25 @@ def test_an_expendable_pole_gives_way_whatever_its_strength():
     assert not none.any()
 
 
+def test_the_duplicate_test_stops_once_its_answer_is_known():
+    """The lone pole's fit of a split pair stops as soon as its cost is under the pair's
+    plus the test's margin: the verdict of the fit run to its end, in fewer iterations."""
+    from automodal.core.refine import MAX_ITERATIONS, _gauss_newton, _Problem, _whitened
+
+    omega, H, variance, poles = _noisy_chain()
+    twin = poles[1] + 0.5j * abs(poles[1].real)
+    s, sw, Y, _ = _whitened(omega, H, variance)
+    prob = _Problem.make(s, sw, Y, poles[[0, 2, 3]])
+    start = np.array([poles[1] + 2.0 * abs(poles[1].real)])  # off its resonance
+    _, full_it, full_cost = _gauss_newton(prob, start, MAX_ITERATIONS)
+    both = full_cost * 0.999  # a pair that fits a little better: one mode at this margin
+    _, it, cost = _gauss_newton(prob, start, MAX_ITERATIONS, enough=both + 0.01 * full_cost)
+    assert cost < both + 0.01 * full_cost and it < full_it
+    # the same verdicts as without the stop, for the split pair and for distinct modes
+    assert duplicate_poles(omega, H, variance, np.array([poles[1], twin]),
+                           poles[[0, 2, 3]]).sum() == 1
+
+
 def test_distinct_modes_are_not_duplicates():
     omega, H, variance, poles = _noisy_chain()
     assert not duplicate_poles(omega, H, variance, poles, np.zeros(0)).any()

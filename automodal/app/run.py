@@ -128,11 +128,13 @@ def read_input(
     InputError
         If ``path`` is a folder, or the file cannot be read (or the options do not fit it).
     """
-    from automodal.io.readers import read_any
-    from automodal.pipeline import input_stage
+    from automodal.io.readers import start_reading
 
     tell(progress, "reading")
-    return input_stage(read_any(path, options), settings, progress)
+    pending = start_reading(path, options)
+    from automodal.pipeline import input_stage  # imported while a child process reads
+
+    return input_stage(pending(), settings, progress)
 
 
 def _own_nodes(path: str | os.PathLike[str], data: FRFData) -> Geometry | None:
@@ -215,10 +217,10 @@ def run_file(
         If the input cannot be read or identified, the report cannot be checked against
         the baseline (shapes on other channels), or a report cannot be written.
     """
+    data = read_input(path, options, settings, progress)  # imports the pipeline meanwhile
     from automodal.io.report import build_report
     from automodal.pipeline import identify
 
-    data = read_input(path, options, settings, progress)
     result = identify(data, settings, progress=progress)
     report = build_report(result, data, input_path=path, sha256=sha256)
     if geometry is None and report.input.mode_shape_xyz is None:

@@ -456,16 +456,22 @@ def _normal_equations(
 def _gauss_newton(
     prob: _Problem, free: np.ndarray, max_iterations: int,
     strayed: Callable[[np.ndarray], np.ndarray] | None = None,
-) -> tuple[np.ndarray, int]:
-    """Levenberg-Marquardt on the free poles; returns them and the iterations taken.
+    enough: float = -np.inf,
+) -> tuple[np.ndarray, int, float]:
+    """Levenberg-Marquardt on the free poles; returns them, the iterations taken and the
+    cost there.
 
     ``strayed(poles)`` (a boolean mask) ends the fit as soon as a pole has left what a
     refinement may do: the caller holds it fixed and fits again, so the remaining
-    iterations would be wasted."""
+    iterations would be wasted. The fit also ends once the cost is below ``enough``: a
+    caller that only asks whether the cost can get that low (:func:`duplicate_poles`) has
+    its answer, since accepted steps never raise the cost."""
     cost, C, R, Qp = _fit(prob, free)
     damping = 1e-3
     it = 0
     for _ in range(max_iterations):
+        if cost < enough:
+            break
         it += 1
         normal, grad = _normal_equations(prob, _jacobian_parts(prob, free, C, Qp), R)
         diag = np.diag(normal).copy()
@@ -492,7 +498,7 @@ def _gauss_newton(
             damping *= 10.0
         if not improved:
             break
-    return free, it
+    return free, it, cost
 
 
 def _block_sums(X: np.ndarray) -> np.ndarray:
@@ -572,7 +578,7 @@ def _fit_holding_strays(
             # out of reach or unstable: no later step brings a pole back from there
             return (np.abs(got - start) > limit) | (got.real >= 0) | (got.imag <= 0)
 
-        got, it = _gauss_newton(prob, current[idx], max_iterations, left)
+        got, it, _ = _gauss_newton(prob, current[idx], max_iterations, left)
         # the half-bandwidth is judged at the end only: from a start off its resonance a
         # pole first widens to reach it (4.8 times, 5 half-bandwidths off), then narrows
         ratio = np.abs(got.real) / np.maximum(np.abs(start.real), 1e-12)
@@ -1050,9 +1056,11 @@ def duplicate_poles(
         keep = (~out) & (np.arange(m) != a) & (np.arange(m) != b)
         prob = base.extended_within(Qt, Rt[:, np.repeat(keep, 2)], QtY)
         both = _fit(prob, poles[[a, b]])[0]
-        alone, _ = _gauss_newton(prob, poles[[strong]], MAX_ITERATIONS)
-        delta = _fit(prob, alone)[0] - both
-        return bool(2.0 * delta / local[weak] < threshold)
+        # one mode when the lone pole's cost can come within this of the pair's: the fit
+        # stops as soon as it does (the answer is then known), else it runs to its end
+        margin = 0.5 * threshold * local[weak]
+        alone = _gauss_newton(prob, poles[[strong]], MAX_ITERATIONS, enough=both + margin)[2]
+        return bool(alone < both + margin)
 
     # closest pairs first, each test with the duplicates found before it out of the model;
     # a batch of the next pairs is tested at once on the workers, and the tests after the
