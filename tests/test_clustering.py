@@ -15,6 +15,7 @@ from automodal.core.clustering import (
     assign,
     coalescent_groups,
     physical_candidates,
+    principal_correlation,
     rank_within_replicate,
     reference_subspaces,
     split_weak_members,
@@ -400,3 +401,18 @@ def test_trim_treats_each_cluster_separately():
     labels_in = np.r_[np.zeros(10, dtype=int), np.ones(4, dtype=int)]
     labels, _ = trim(labels_in, o, poles, rep, np.array([1, 1]))
     np.testing.assert_array_equal(labels, [0] * 9 + [TRASHBOX] + [1] * 4)
+
+
+@pytest.mark.parametrize("d, m", [(60, 100), (222, 100), (12, 5), (30, 1)])
+@pytest.mark.parametrize("dim", [1, 2])
+def test_principal_correlation_is_the_svds_whichever_gram_it_uses(d, m, dim):
+    """Members wider or taller than they are many: the smaller Gram matrix gives the
+    correlations with the leading singular subspace that the SVD gives."""
+    rng = np.random.default_rng(d + m + dim)
+    signal = rng.standard_normal((d, dim)) + 1j * rng.standard_normal((d, dim))
+    o = signal @ rng.standard_normal((dim, m)) + 0.2 * (
+        rng.standard_normal((d, m)) + 1j * rng.standard_normal((d, m)))
+    o /= np.linalg.norm(o, axis=0)
+    u = np.linalg.svd(o, full_matrices=False)[0][:, :dim]
+    np.testing.assert_allclose(principal_correlation(o, dim), subspace_correlation(u, o),
+                               rtol=0, atol=1e-12)
