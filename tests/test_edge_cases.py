@@ -411,8 +411,35 @@ def test_the_time_limit_counts_from_the_start_while_the_caller_works(tmp_path,
     with pytest.raises(InputError, match="reading did not finish within 1.5 s"):
         pending()
     assert time.perf_counter() - started < 2.4
-    data = start_reading(SAMPLE)()
-    assert np.array_equal(data.frf, read_frf(SAMPLE).frf)
+    with pytest.raises(InputError, match="did not finish"):
+        pending()  # the same refusal when asked again
+    read = start_reading(SAMPLE)
+    data = read()
+    assert np.array_equal(data.frf, read_frf(SAMPLE).frf) and read() is data
+
+
+def test_a_reading_dropped_unread_leaves_no_child(tmp_path, monkeypatch):
+    """A run whose import fails after its reading began (or that drops the reading) ends
+    the child: nothing goes on hanging on a damaged file."""
+    import base64
+    import gc
+    import multiprocessing
+    import zlib
+
+    from automodal.io.readers import start_reading
+
+    path = tmp_path / "hangs.h5"
+    path.write_bytes(zlib.decompress(base64.b64decode(HANGING_HDF5)))
+    monkeypatch.setenv("AUTOMODAL_READ_TIMEOUT_S", "60")
+    cancelled = start_reading(path)
+    cancelled.cancel()
+    with pytest.raises(InputError, match="cancelled"):
+        cancelled()
+    dropped = start_reading(path)
+    del dropped
+    gc.collect()
+    time.sleep(0.2)
+    assert not multiprocessing.active_children()
 
 
 def test_a_reader_that_crashes_is_a_refusal_not_a_dead_process(tmp_path, monkeypatch):

@@ -132,8 +132,11 @@ def read_input(
 
     tell(progress, "reading")
     pending = start_reading(path, options)
-    from automodal.pipeline import input_stage  # imported while a child process reads
-
+    try:
+        from automodal.pipeline import input_stage  # imported while a child process reads
+    except BaseException:
+        pending.cancel()
+        raise
     return input_stage(pending(), settings, progress)
 
 

@@ -465,7 +465,8 @@ def _gauss_newton(
     refinement may do: the caller holds it fixed and fits again, so the remaining
     iterations would be wasted. The fit also ends once the cost is below ``enough``: a
     caller that only asks whether the cost can get that low (:func:`duplicate_poles`) has
-    its answer, since accepted steps never raise the cost."""
+    its answer, since accepted steps never raise the cost (the fit run to its end gives the
+    same answer, but for a comparison within the last bit of ``enough``)."""
     cost, C, R, Qp = _fit(prob, free)
     damping = 1e-3
     it = 0

@@ -51,6 +51,7 @@ import multiprocessing
 import os
 import sys
 import time
+import weakref
 from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -63,7 +64,8 @@ if TYPE_CHECKING:  # annotations only: the readers import what they return
     from automodal.io.channels import Channels, TimeOptions
     from automodal.timedata import TimeSeries
 
-__all__ = ["READERS", "READ_TIMEOUT_S", "read_any", "read_hdf5", "reader_suffix"]
+__all__ = ["READERS", "READ_TIMEOUT_S", "PendingRead", "read_any", "read_hdf5", "reader_suffix",
+           "start_reading"]
 
 READ_TIMEOUT_S = 120.0
 """Longest time one file may take to read, in seconds (the environment variable
@@ -147,9 +149,9 @@ def read_any(path: str | os.PathLike[str],
 
 
 def start_reading(path: str | os.PathLike[str], options: TimeOptions | None = None
-                  ) -> Callable[[], FRFData | TimeSeries]:
-    """Begin :func:`read_any`: the returned function waits for the data and returns them
-    (or raises what :func:`read_any` raises).
+                  ) -> PendingRead:
+    """Begin :func:`read_any`: calling the returned :class:`PendingRead` waits for the data
+    and returns them (or raises what :func:`read_any` raises).
 
     Where the reading runs in a child process, the caller goes on meanwhile: a command-line
     run imports the analysis's modules while its file is read (the child's own import of
@@ -161,9 +163,42 @@ def start_reading(path: str | os.PathLike[str], options: TimeOptions | None = No
     timeout = _read_timeout()
     if (timeout <= 0 or not sys.platform.startswith("linux")
             or multiprocessing.current_process().daemon):  # a daemon may not have children
-        data = _read_by_suffix(path, options)
-        return lambda: data
+        return PendingRead(data=_read_by_suffix(path, options))
     return _read_in_child(path, options, timeout)
+
+
+class PendingRead:
+    """A reading begun by :func:`start_reading`: call it for the data (the first call waits
+    for the child and ends it; later calls give the same data or raise the same error), or
+    :meth:`cancel` it. A child whose reading is dropped unread is killed when this object
+    is collected."""
+
+    def __init__(self, data: FRFData | TimeSeries | None = None,
+                 wait: Callable[[], FRFData | TimeSeries] | None = None,
+                 cancel: Callable[[], None] | None = None) -> None:
+        self._data = data
+        self._error: BaseException | None = None
+        self._wait = wait
+        self._cancel = cancel
+
+    def __call__(self) -> FRFData | TimeSeries:
+        if self._wait is not None:
+            wait, self._wait = self._wait, None
+            try:
+                self._data = wait()
+            except BaseException as exc:
+                self._error = exc
+        if self._error is not None:
+            raise self._error
+        assert self._data is not None
+        return self._data
+
+    def cancel(self) -> None:
+        """Stop the child (if it still runs) without waiting for its answer."""
+        if self._wait is not None and self._cancel is not None:
+            self._wait = None
+            self._cancel()
+            self._error = InputError("the reading was cancelled")
 
 
 def _read_by_suffix(path: str | os.PathLike[str],
@@ -229,14 +264,14 @@ def _read_timeout() -> float:
 
 
 def _read_in_child(path: str | os.PathLike[str], options: TimeOptions | None,
-                   timeout: float) -> Callable[[], FRFData | TimeSeries]:
+                   timeout: float) -> PendingRead:
     """:func:`_read_by_suffix` in a forked child that must answer within ``timeout`` (from
-    its start); returns the function that waits for the answer.
+    its start), as a :class:`PendingRead`.
 
-    The child sends back the data, or the refusal, or the unexpected exception, which are
-    raised by the returned function as if the reading had happened in this process. A child
-    that does not answer in time is killed; one that dies (a crash in a C library) has no
-    answer: both are refusals of the file.
+    The child sends back the data, or the refusal, or the unexpected exception, which the
+    pending read raises as if the reading had happened in this process. A child that does
+    not answer in time is killed; one that dies (a crash in a C library) has no answer: both
+    are refusals of the file.
     """
     source = str(path)
     context = multiprocessing.get_context("fork")
@@ -245,6 +280,12 @@ def _read_in_child(path: str | os.PathLike[str], options: TimeOptions | None,
     deadline = time.monotonic() + timeout
     child.start()
     send.close()
+
+    def end() -> None:
+        if child.is_alive():
+            child.kill()
+        child.join()
+        receive.close()
 
     def wait() -> FRFData | TimeSeries:
         try:
@@ -258,10 +299,7 @@ def _read_in_child(path: str | os.PathLike[str], options: TimeOptions | None,
                 raise InputError(f"the reader crashed on the file (exit code "
                                  f"{child.exitcode}): a damaged file", source) from None
         finally:
-            if child.is_alive():
-                child.kill()
-            child.join()
-            receive.close()
+            end()
         kind = answer[0]
         if kind == "data":
             return answer[1]
@@ -269,7 +307,17 @@ def _read_in_child(path: str | os.PathLike[str], options: TimeOptions | None,
             raise InputError(answer[1], answer[2])
         raise answer[1]
 
-    return wait
+    pending = PendingRead(wait=wait, cancel=end)
+    weakref.finalize(pending, _kill, child, os.getpid())
+    return pending
+
+
+def _kill(child: Any, owner: int) -> None:
+    """End a reading child nobody waits for (see :class:`PendingRead`); only in the process
+    that started it (a forked process inherits the finalizer, not the child)."""
+    if os.getpid() == owner and child.is_alive():
+        child.kill()
+        child.join()
 
 
 def _child_reads(path: str | os.PathLike[str], options: TimeOptions | None, send: Any) -> None:
