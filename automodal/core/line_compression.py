@@ -263,9 +263,9 @@ def _tails(response: _Response, variance: np.ndarray) -> list[Tail]:
              e[::-1][: n_blocks * L].reshape(n_blocks, L, -1).mean(axis=1))
     # the record's quiet middle (the last quarter of each side's blocks), where it is below
     # the noise model's level: the lower level is the cautious one. The blocks' median is
-    # the Gamma law's, below its mean where the noise is correlated across a block
+    # the Gamma law's (mean 1), below its mean where the noise is correlated across a block
     quiet = np.median(np.concatenate([b[-max(1, n_blocks // 4):] for b in sides]), axis=0)
-    level = np.minimum(level, quiet / _gamma_median(shape))
+    level = np.minimum(level, quiet * shape / _gamma_quantile(shape, 0.5))
     level = np.where(level > 0, level, np.inf)
     tails: list[Tail] = []
     for side, blocks in enumerate(sides):
@@ -326,13 +326,6 @@ def block_energy_shape(variance: np.ndarray, L: int) -> np.ndarray:
     shape = np.full(C, float(L))
     shape[positive] = L * r0[positive] / top[positive]
     return np.clip(shape, 1.0, float(L))
-
-
-def _gamma_median(shape: np.ndarray) -> np.ndarray:
-    """Median of Gamma(``shape``, ``1 / shape``) (mean 1)."""
-    from scipy.special import gammaincinv
-
-    return np.asarray(gammaincinv(shape, 0.5), dtype=float) / shape
 
 
 def _tail(side: int, excess: np.ndarray, centre: np.ndarray, L: int) -> Tail:

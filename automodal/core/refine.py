@@ -1057,11 +1057,11 @@ def duplicate_poles(
         keep = (~out) & (np.arange(m) != a) & (np.arange(m) != b)
         prob = base.extended_within(Qt, Rt[:, np.repeat(keep, 2)], QtY)
         both = _fit(prob, poles[[a, b]])[0]
-        # one mode when the lone pole's cost can come within this of the pair's: the fit
-        # stops as soon as it does (the answer is then known), else it runs to its end
-        margin = 0.5 * threshold * local[weak]
-        alone = _gauss_newton(prob, poles[[strong]], MAX_ITERATIONS, enough=both + margin)[2]
-        return bool(alone < both + margin)
+        # one mode when the lone pole's cost can come below this: the fit stops as soon as
+        # it does (the answer is then known), else it runs to its end
+        enough = both + 0.5 * threshold * local[weak]
+        return bool(_gauss_newton(prob, poles[[strong]], MAX_ITERATIONS, enough=enough)[2]
+                    < enough)
 
     # closest pairs first, each test with the duplicates found before it out of the model;
     # a batch of the next pairs is tested at once on the workers, and the tests after the

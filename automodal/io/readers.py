@@ -281,7 +281,13 @@ def _read_in_child(path: str | os.PathLike[str], options: TimeOptions | None,
     child.start()
     send.close()
 
+    owner = os.getpid()
+
     def end() -> None:
+        # also the finalizer of a reading dropped unread; a forked process inherits it,
+        # not the child
+        if os.getpid() != owner:
+            return
         if child.is_alive():
             child.kill()
         child.join()
@@ -308,16 +314,8 @@ def _read_in_child(path: str | os.PathLike[str], options: TimeOptions | None,
         raise answer[1]
 
     pending = PendingRead(wait=wait, cancel=end)
-    weakref.finalize(pending, _kill, child, os.getpid())
+    weakref.finalize(pending, end)
     return pending
-
-
-def _kill(child: Any, owner: int) -> None:
-    """End a reading child nobody waits for (see :class:`PendingRead`); only in the process
-    that started it (a forked process inherits the finalizer, not the child)."""
-    if os.getpid() == owner and child.is_alive():
-        child.kill()
-        child.join()
 
 
 def _child_reads(path: str | os.PathLike[str], options: TimeOptions | None, send: Any) -> None:
