@@ -14,6 +14,7 @@ from automodal.core.correlation import (
     moc_vectors,
     orthonormal_basis,
     subspace_correlation,
+    subspace_correlations,
 )
 
 E = np.eye(4, dtype=complex)  # e_0 .. e_3 as columns
@@ -231,3 +232,16 @@ def test_subspace_correlation_with_empty_basis_is_zero():
     rho = subspace_correlation(np.zeros((4, 0), dtype=complex), E[:, :3])
     assert rho.shape == (3,)
     np.testing.assert_array_equal(rho, 0.0)
+
+
+def test_subspace_correlations_are_each_bases_own():
+    # one product for all the bases: the same numbers as one basis at a time, an empty
+    # basis giving zeros; the plane and the line by hand
+    o = np.column_stack([(E[:, 0] + E[:, 3]) / np.sqrt(2), E[:, 2], E[:, 1]])
+    line = E[:, 3:4]
+    empty = np.zeros((4, 0), dtype=complex)
+    rho = subspace_correlations([_plane(), empty, line], o)
+    np.testing.assert_allclose(rho, [[0.5, 0.0, 1.0], [0.0, 0.0, 0.0], [0.5, 0.0, 0.0]],
+                               atol=1e-15)
+    assert subspace_correlations([empty], o).shape == (1, 3)
+    assert subspace_correlations([], o).shape == (0, 3)

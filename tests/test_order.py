@@ -201,6 +201,13 @@ def test_plateaued_ten_percent_rule():
     assert plateaued(orders, almost)
 
 
+def test_plateaued_reads_misfits_at_rounding_level_as_the_floor():
+    # noise-free data: which rounding-level misfit is smaller is the BLAS kernels' chance
+    orders = np.array([2, 4, 6, 8])
+    assert plateaued(orders, np.array([1.2, 1.3e-14, 7.2e-15, 3.7e-15]), patience=4)
+    assert not plateaued(orders, np.array([1.2, 1e-3, 1e-4, 1e-5]), patience=4)
+
+
 def test_plateaued_needs_a_past_window():
     orders = np.arange(2, 22, 2)  # 2 .. 20: nothing is 24 states back
     assert not plateaued(orders, np.ones(orders.size))

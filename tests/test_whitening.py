@@ -292,6 +292,42 @@ def test_mode_snr2_sums_over_the_lines_of_a_mode_narrower_than_the_line_step():
         np.testing.assert_array_equal(whitening.mode_snr2(model, z, var, jobs=jobs), default)
 
 
+def test_mode_snr2_is_the_regression_formed_column_by_column():
+    # five close and overlapping modes seen by three outputs and two inputs, a variance
+    # that is not separable: the SNR^2 (every line taken) must be the first element of
+    # the inverse of mode a's 2 x 2 block of G^-1 (what the residual grows by when its two
+    # columns are left out), G the Gram matrix of the real regression whose columns are
+    # each mode's term plus its conjugate's and i times their difference, formed here
+    # entry by entry
+    rng = np.random.default_rng(5)
+    mus = 0.97 * np.exp(1j * np.array([0.50, 0.52, 0.55, 0.9, 1.3]))
+    n = 2 * mus.size
+    A = np.zeros((n, n))
+    for k, mu in enumerate(mus):
+        A[2 * k:2 * k + 2, 2 * k:2 * k + 2] = [[mu.real, -mu.imag], [mu.imag, mu.real]]
+    model = ModalModel(A, rng.normal(size=(n, 2)), rng.normal(size=(3, n)),
+                       np.zeros((3, 2)), 1.0)
+    z = np.exp(1j * np.linspace(0.3, 1.5, 400))
+    var = rng.uniform(0.5, 2.0, size=(z.size, 3, 2)) * 1e-3
+    sel = model.oscillatory
+    CV = (model.C @ model.V)[:, sel]
+    L = model.modal_inputs[sel]
+    cols = []
+    for a, mu in enumerate(model.mu[sel]):
+        term = CV[None, :, a, None] * L[None, a, None, :] / (z - mu)[:, None, None]
+        twin = np.conj(CV[None, :, a, None] * L[None, a, None, :]) / (z - np.conj(mu))[
+            :, None, None]
+        for c in (term + twin, 1j * (term - twin)):
+            c = c * np.sqrt(2.0 / var)
+            cols.append(np.concatenate([c.real.ravel(), c.imag.ravel()]))
+    G = np.array(cols) @ np.array(cols).T
+    inv = np.linalg.inv(G)
+    want = [np.linalg.inv(inv[2 * a:2 * a + 2, 2 * a:2 * a + 2])[0, 0]
+            for a in range(sel.size)]
+    got = whitening.mode_snr2(model, z, var, max_lines=z.size)
+    np.testing.assert_allclose(got, want, rtol=1e-9)
+
+
 def test_quadrature_lines_take_every_line_near_a_pole_and_weigh_the_rest():
     z = np.exp(1j * np.linspace(0.1, 3.0, 5000))
     mu = np.array([0.999 * z[1234]])

@@ -10,7 +10,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from automodal.core.correlation import orthonormal_basis, subspace_correlation
+from automodal.core.correlation import (
+    orthonormal_basis,
+    subspace_correlation,
+    subspace_correlations,
+)
 
 TRASHBOX = -1
 MAD_SCALE = 1.4826  # MAD of a normal sample -> its standard deviation
@@ -166,13 +170,21 @@ def split_stable_groups(
     """
     out: list[np.ndarray] = []
     capacity: list[int] = []
+    # every group's union and single correlations from two products over all the modes
+    several = [g for g in groups if g.size >= 2]
+    unions = subspace_correlations([orthonormal_basis(o_ref[:, g]) for g in several], o_boot)
+    singles = (np.abs(o_ref[:, np.concatenate(several)].conj().T @ o_boot) ** 2
+               if several else np.zeros((0, o_boot.shape[1])))
+    ends = np.cumsum([g.size for g in several], dtype=int)
+    j = 0
     for g in groups:
         if g.size < 2:
             out.append(g)
             capacity.append(1)
             continue
-        rho_union = subspace_correlation(orthonormal_basis(o_ref[:, g]), o_boot)
-        rho_single = np.max(np.abs(o_ref[:, g].conj().T @ o_boot) ** 2, axis=0)
+        rho_union = unions[j]
+        rho_single = np.max(singles[ends[j] - g.size : ends[j]], axis=0)
+        j += 1
         near = rho_union >= threshold
         per_rep = np.bincount(replicate[near], minlength=n_bootstrap)
         full = np.count_nonzero(per_rep >= g.size) >= min_full * n_bootstrap
@@ -297,8 +309,8 @@ def assign(
     M = o.shape[1]
     if not ref.bases or M == 0:
         return np.full(M, TRASHBOX, dtype=int), np.zeros(M)
-    rho_all = np.vstack([subspace_correlation(b, o) for b in ref.bases])  # (n_clusters, M)
-    rho_noise = subspace_correlation(ref.noise_basis, o)
+    rho_all = subspace_correlations([*ref.bases, ref.noise_basis], o)  # (n_clusters + 1, M)
+    rho_all, rho_noise = rho_all[:-1], rho_all[-1]
     best = np.argmax(rho_all, axis=0)
     rho = rho_all[best, np.arange(M)]
     labels = np.where((rho >= threshold) & (rho > rho_noise), best, TRASHBOX)

@@ -34,10 +34,17 @@ def moc_vectors(shapes: np.ndarray, mu: np.ndarray, k: int) -> np.ndarray:
     shapes = np.asarray(shapes, dtype=complex)
     ny, m = shapes.shape
     powers = np.asarray(mu, dtype=complex)[None, :] ** np.arange(k)[:, None]  # (k, m)
-    o = (powers[:, None, :] * shapes[None, :, :]).reshape(k * ny, m)
-    norms = np.linalg.norm(o, axis=0)
+    # ||W_k(mu) kron psi|| = ||W_k(mu)|| ||psi||: both factors normalised apart, so that the
+    # (k ny, m) array is written once
+    return (_unit_columns(powers)[:, None, :] * _unit_columns(shapes)[None, :, :]).reshape(
+        k * ny, m)
+
+
+def _unit_columns(x: np.ndarray) -> np.ndarray:
+    """Columns divided by their norms (a zero column left as it is)."""
+    norms = np.linalg.norm(x, axis=0)
     norms[~(norms > 0)] = 1.0
-    return o / norms
+    return x / norms
 
 
 def moc(o_a: np.ndarray, o_b: np.ndarray) -> np.ndarray:
@@ -71,3 +78,27 @@ def subspace_correlation(basis: np.ndarray, o: np.ndarray) -> np.ndarray:
     if basis.shape[1] == 0:
         return np.zeros(np.asarray(o).shape[1])
     return np.sum(np.abs(basis.conj().T @ o) ** 2, axis=0)
+
+
+def subspace_correlations(bases: list[np.ndarray], o: np.ndarray) -> np.ndarray:
+    """:func:`subspace_correlation` of the vectors ``o`` with each of several bases.
+
+    One product with all the bases side by side: the vectors are read once, not once per
+    basis (with thousands of bootstrap modes and a basis of one or two vectors per
+    cluster, each separate product was a pass over all of ``o`` for a few rows).
+
+    Returns
+    -------
+    ndarray, shape (len(bases), M)
+        Row ``c``: the correlations with ``bases[c]`` (zeros for an empty basis).
+    """
+    o = np.asarray(o)
+    dims = np.array([b.shape[1] for b in bases], dtype=int)
+    out = np.zeros((dims.size, o.shape[1]))
+    if dims.sum() == 0:
+        return out
+    power = np.abs(np.hstack(bases).conj().T @ o) ** 2
+    ends = np.cumsum(dims)
+    for c in np.flatnonzero(dims):
+        out[c] = np.sum(power[ends[c] - dims[c] : ends[c]], axis=0)
+    return out

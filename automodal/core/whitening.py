@@ -161,9 +161,10 @@ SNR_MAX_LINES = 1000
 """Lines on which :func:`mode_snr2` forms its Gram matrix (chosen by
 :func:`quadrature_lines`, each weighted by the lines it stands for)."""
 
-SNR_PARTS = 4
-"""Parts of the stacked lines and entries whose products :func:`mode_snr2` forms apart
-(on the free cores) and adds in order: fixed, so the sum does not depend on the workers."""
+SNR_PART_BYTES = 4 * 2**20
+"""Size of the columns of one part of the lines in :func:`mode_snr2`, whose products it
+forms apart (on the free cores) and adds in order: set by the sizes alone, so the sum does
+not depend on the workers."""
 
 
 def quadrature_lines(
@@ -250,47 +251,64 @@ def mode_snr2(
     max_lines : int
         Lines the sums are taken over (:func:`quadrature_lines`, weighted).
     jobs : int or None
-        Worker threads (:func:`automodal.core.parallel.freeing_map`) for the modes' columns
-        and for the Gram matrix's parts (the lines split in :data:`SNR_PARTS`, added in
-        order): the result does not depend on them. A 38-output dense grid's sub-band
-        (seed 459 f_17, 70 modes) spent 0.8 s here on one core, the other idle.
+        Worker threads (:func:`automodal.core.parallel.freeing_map`) for the Gram
+        matrix's parts (the lines split by :data:`SNR_PART_BYTES`, added in order): the
+        result does not depend on them. A 38-output dense grid's sub-band (seed 459 f_17,
+        70 modes) spent 0.8 s here on one core, the other idle.
 
     Returns
     -------
     ndarray, shape (number of oscillatory modes,)
     """
     from automodal.core.parallel import freeing_map
-    from automodal.core.subspace import modal_sum
 
     sel = modal.oscillatory
     if sel.size == 0 or modal.B is None:
         return np.zeros(sel.size)
     sub, weight = quadrature_lines(z, modal.mu[sel], max_lines)
     zs = z[sub]
+    n_lines = zs.size
     # real inner products of 2 |x|^2 / var, each line standing for ``weight`` lines
-    w = np.sqrt(2.0 * weight[:, None, None] / variance[sub])
+    w = np.sqrt(2.0 * weight[:, None, None] / variance[sub]).reshape(n_lines, -1)
     CV = (modal.C @ modal.V)[:, sel]
     L = modal.modal_inputs[sel]
     mu = modal.mu[sel]
     m = sel.size
-    cols = np.empty((2 * m, 2 * w.size))
-
-    def columns(i: int) -> None:
-        a = modal_sum(CV[:, i : i + 1], mu[i : i + 1], L[i : i + 1], zs)
-        b = np.conj(modal_sum(CV[:, i : i + 1], mu[i : i + 1], L[i : i + 1], zs.conj()))
-        for r, t in enumerate(((a + b) * w, 1j * (a - b) * w)):
-            cols[2 * i + r] = np.concatenate([t.real.ravel(), t.imag.ravel()])
-
-    bounds = np.linspace(0, cols.shape[1], SNR_PARTS + 1).round().astype(int)
+    # The columns of mode a: its term P / (z - mu) and its conjugate's conj(P) / (z - conj
+    # mu), P = (C v) l^T over the entries, give s (their sum) and i d (i times their
+    # difference), each as its real and then its imaginary part over (line, entry). With
+    # A = 1 / (z - mu) and B = 1 / (z - conj mu) every one of these four real blocks is a
+    # sum of two outer products of line functions with Re P and Im P:
+    #   Re s = (Re A + Re B) Re P - (Im A - Im B) Im P
+    #   Im s = (Im A + Im B) Re P + (Re A - Re B) Im P
+    #   Re(i d) = -Im d = -(Im A - Im B) Re P - (Re A + Re B) Im P
+    #   Im(i d) = Re d = (Re A - Re B) Re P - (Im A + Im B) Im P
+    A = 1.0 / (zs[None, :] - mu[:, None])  # (m, lines)
+    B = 1.0 / (zs[None, :] - np.conj(mu)[:, None])
+    sr, dr = A.real + B.real, A.real - B.real
+    si, di = A.imag + B.imag, A.imag - B.imag
+    X = np.stack([np.stack([sr, -di], axis=-1), np.stack([si, dr], axis=-1),
+                  np.stack([-di, -sr], axis=-1), np.stack([dr, -si], axis=-1)], axis=1)
+    P = (CV.T[:, :, None] * L[:, None, :]).reshape(m, -1)  # (m, entries), as w's
+    PP = np.stack([P.real, P.imag], axis=1)[:, None]  # (m, 1, 2, entries)
+    # the Gram matrix summed over parts of a few lines each (in order, whatever the
+    # workers), so that no part's columns outgrow the caches: all the columns at once
+    # (2 m x 2 lines entries, 240 MB for 91 modes of 27 x 3 entries) cost more in first
+    # touches of fresh memory than in arithmetic
+    lines_per_part = max(1, SNR_PART_BYTES // (8 * 4 * m * w.shape[1]))
+    bounds = np.arange(0, n_lines + lines_per_part, lines_per_part).clip(max=n_lines)
+    bounds = np.unique(bounds)
 
     def part(k: int) -> np.ndarray:
-        c = cols[:, bounds[k] : bounds[k + 1]]
+        lo, hi = bounds[k], bounds[k + 1]
+        block = np.matmul(X[:, :, lo:hi], PP)  # (m, 4, lines, entries)
+        block *= w[None, None, lo:hi]
+        c = block.reshape(2 * m, -1)  # mode a: rows 2a (s) and 2a + 1 (i d)
         return c @ c.T
 
-    with freeing_map(jobs, m, 8.0 * m * cols.size) as (_, pmap):
-        list(pmap(columns, range(m)))
+    with freeing_map(jobs, bounds.size - 1, 16.0 * m * m * w.size) as (_, pmap):
         gram = np.zeros((2 * m, 2 * m))
-        for g in pmap(part, range(SNR_PARTS)):
+        for g in pmap(part, range(bounds.size - 1)):
             gram += g
     try:
         inv = np.linalg.pinv(gram, rcond=1e-12, hermitian=True)
