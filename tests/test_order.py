@@ -206,6 +206,8 @@ def test_plateaued_reads_misfits_at_rounding_level_as_the_floor():
     orders = np.array([2, 4, 6, 8])
     assert plateaued(orders, np.array([1.2, 1.3e-14, 7.2e-15, 3.7e-15]), patience=4)
     assert not plateaued(orders, np.array([1.2, 1e-3, 1e-4, 1e-5]), patience=4)
+    # nor does a fall among rounding-level misfits count as still falling
+    assert not still_falling(np.arange(2, 14, 2), np.array([3, 2, 1, 0.5, 0.2, 0.1]) * 1e-14)
 
 
 def test_plateaued_needs_a_past_window():

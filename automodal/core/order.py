@@ -303,6 +303,8 @@ def still_falling(orders: np.ndarray, misfit, share: float = 0.05) -> bool:
     :func:`plateaued` read as a floor; the true order was 160.
     """
     orders = np.asarray(orders)
+    # below the identification's precision a misfit is rounding (as in plateaued)
+    misfit = np.maximum(np.asarray(misfit, dtype=float), MODEL_PRECISION)
     best = np.minimum.accumulate(np.where(np.isfinite(misfit), misfit, np.inf))
     if orders.size < 3 or not np.isfinite(best[-1]):
         return False

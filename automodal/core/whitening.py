@@ -269,7 +269,8 @@ def mode_snr2(
     zs = z[sub]
     n_lines = zs.size
     # real inner products of 2 |x|^2 / var, each line standing for ``weight`` lines
-    w = np.sqrt(2.0 * weight[:, None, None] / variance[sub]).reshape(n_lines, -1)
+    w = np.sqrt(2.0 * weight[:, None, None] / variance[sub]).reshape(
+        n_lines, variance.shape[1] * variance.shape[2])
     CV = (modal.C @ modal.V)[:, sel]
     L = modal.modal_inputs[sel]
     mu = modal.mu[sel]
