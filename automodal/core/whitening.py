@@ -297,8 +297,7 @@ def mode_snr2(
     # (2 m x 2 lines entries, 240 MB for 91 modes of 27 x 3 entries) cost more in first
     # touches of fresh memory than in arithmetic
     lines_per_part = max(1, SNR_PART_BYTES // (8 * 4 * m * w.shape[1]))
-    bounds = np.arange(0, n_lines + lines_per_part, lines_per_part).clip(max=n_lines)
-    bounds = np.unique(bounds)
+    bounds = np.append(np.arange(0, n_lines, lines_per_part), n_lines)
 
     def part(k: int) -> np.ndarray:
         lo, hi = bounds[k], bounds[k + 1]
