@@ -1,6 +1,7 @@
 """A band whose refinement cannot confirm a physical mode is analysed again at the order
-scan's block rows, and the analysis whose refinement confirms more physical modes is kept
-(``docs/method.md`` 1, ``pipeline._retry_block_rows``)."""
+scan's block rows when the refinement started from a reference at those rows confirms more
+modes, and the analysis whose refinement confirms more physical modes is kept
+(``docs/method.md`` 1, ``pipeline._retry_block_rows``, ``pipeline._retry_confirms_more``)."""
 
 from __future__ import annotations
 
@@ -10,7 +11,7 @@ import cases
 import numpy as np
 import pytest
 
-from automodal.core import order, subspace, summary
+from automodal.core import order, refine, subspace, summary
 from automodal.pipeline import identify
 from automodal.result import IdentifiedMode
 from automodal.settings import Settings
@@ -39,7 +40,8 @@ def chain():
 
 def _identify(chain, monkeypatch, spoil: list[bool]) -> tuple[dict, int, int]:
     """Identify ``chain``; the refinement's ``k``-th call leaves one physical mode with its
-    bootstrap statistics when ``spoil[k]``. Returns the orders, the number of calls and
+    bootstrap statistics when ``spoil[k]`` (the calls: the first analysis's, the check at
+    the scan's rows, the second analysis's). Returns the orders, the number of calls and
     the lines analysed."""
     real = summary.refine_physical_modes
     calls: list[int] = []
@@ -65,8 +67,8 @@ def test_a_band_whose_modes_are_all_confirmed_is_analysed_once(chain, monkeypatc
 
 def test_an_unconfirmed_mode_brings_the_scan_rows_and_the_better_analysis_is_kept(
         chain, monkeypatch):
-    orders, calls, n_lines = _identify(chain, monkeypatch, [True, False])
-    assert calls == 2
+    orders, calls, n_lines = _identify(chain, monkeypatch, [True, False, False])
+    assert calls == 3
     first, second = orders["block_rows_tried"]
     _, ny, nu = chain.data.frf.shape
     assert second == min(subspace.scan_block_rows(orders["reference"], ny),
@@ -76,8 +78,50 @@ def test_an_unconfirmed_mode_brings_the_scan_rows_and_the_better_analysis_is_kep
 
 
 def test_a_second_analysis_confirming_no_more_modes_is_dropped(chain, monkeypatch):
-    orders, calls, _ = _identify(chain, monkeypatch, [True, True])
-    assert calls == 2
+    orders, calls, _ = _identify(chain, monkeypatch, [True, False, True])
+    assert calls == 3
     first, second = orders["block_rows_tried"]
     assert second > first
     assert orders["block_rows"] == first
+
+
+def test_no_second_analysis_when_the_scan_rows_poles_confirm_no_more(chain, monkeypatch):
+    # the check's refinement (second call) confirms no more than the first analysis: the
+    # second bootstrap is not run
+    orders, calls, _ = _identify(chain, monkeypatch, [True, True])
+    assert calls == 2
+    assert orders["block_rows_tried"] == [orders["block_rows"]]
+
+
+def test_starts_within_reach_pairs_closest_first_one_to_one_and_within_reach():
+    start = np.array([-0.1 + 10j, -0.1 + 12j])
+    others = np.array([-5.0 + 40j])
+    # 10.05j is the closest to both starts' first; 12.2j is 2 half-bandwidths from the
+    # second start (within its reach, 3); 20j is beyond every reach
+    candidates = np.array([-0.1 + 20j, -0.1 + 10.05j, -0.1 + 12.2j])
+    assert refine.starts_within_reach(start, others, candidates).tolist() == [1, 2]
+    # one candidate for two starts: the closer start takes it, the other gets none
+    near_both = np.array([-0.1 + 11.9j])
+    assert refine.starts_within_reach(start, others, near_both).tolist() == [-1, 0]
+    # the reach is max(3 half-bandwidths, half the gap to the nearest other pole): 1.0
+    # here for both starts (2 apart)
+    assert refine.starts_within_reach(start, others, np.array([-0.1 + 13.0j])).tolist() == [
+        -1, 0]
+    assert refine.starts_within_reach(start, others, np.array([-0.1 + 13.02j])).tolist() == [
+        -1, -1]
+    assert refine.starts_within_reach(start, others, np.array([])).tolist() == [-1, -1]
+
+
+def test_restarted_moves_each_named_reference_mode_to_the_other_models_own():
+    states = np.array([-0.1 + 10j, -0.1 - 10j, -0.1 + 12j, -0.1 - 12j, -3.0 + 0j])
+    oscillatory = np.array([0, 2])
+    other_states = np.array([-0.1 + 30j, -0.1 + 12.1j, -0.1 + 10.02j, -0.1 - 30j])
+    other_oscillatory = np.array([2, 1, 0])  # modes at 10.02, 12.1, 30 rad/s
+    modes = [replace(_mode(True, "bootstrap"), reference_mode=1),
+             replace(_mode(False, "bootstrap"), reference_mode=0),
+             replace(_mode(False, "bootstrap"), reference_mode=-1)]
+    moved = summary.restarted(modes, states, oscillatory, other_states, other_oscillatory)
+    assert [m.reference_mode for m in moved] == [1, 0, -1]
+    # a model without a pole near the first mode: that mode is not refined
+    lone = summary.restarted(modes, states, oscillatory, other_states[:2], np.array([1, 0]))
+    assert [m.reference_mode for m in lone] == [0, -1, -1]

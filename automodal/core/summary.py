@@ -18,7 +18,13 @@ from automodal.core import clustering, physicalness
 from automodal.core.matching import mode_numbers
 from automodal.core.modal import ModeSet, mpc, normalise_shapes, unit_max_shapes
 from automodal.core.pole_map import PoleMap
-from automodal.core.refine import PoleRefinement, duplicate_poles, refine_poles, residue_shapes
+from automodal.core.refine import (
+    PoleRefinement,
+    duplicate_poles,
+    refine_poles,
+    residue_shapes,
+    starts_within_reach,
+)
 from automodal.result import IdentifiedMode
 
 
@@ -451,6 +457,36 @@ def refine_physical_modes(
             **_fit_shape(m, shapes[:, j]), estimator="ml",
         ))
     return finished(out)
+
+
+def restarted(
+    modes: list[IdentifiedMode], states: np.ndarray, oscillatory: np.ndarray,
+    other_states: np.ndarray, other_oscillatory: np.ndarray,
+) -> list[IdentifiedMode]:
+    """The modes with their reference modes moved to another reference model of the same
+    data, for :func:`refine_physical_modes` to start from its poles.
+
+    Each reference mode the modes name (``oscillatory[reference_mode]`` of ``states``) is
+    replaced by the other model's mode closest to it within its refinement's reach
+    (:func:`automodal.core.refine.starts_within_reach`), one to one; a mode whose
+    reference mode has none gets ``reference_mode`` -1 and is not refined.
+
+    Parameters
+    ----------
+    modes : list of IdentifiedMode
+        From :func:`summarise_clusters` on the first reference model.
+    states, oscillatory
+        The first model's poles of all its states, and the indices of its modes.
+    other_states, other_oscillatory
+        The same of the other model.
+    """
+    named = np.array(sorted({m.reference_mode for m in modes if m.reference_mode >= 0}),
+                     dtype=int)
+    own = oscillatory[named]
+    others = np.delete(states, own)
+    pick = starts_within_reach(states[own], others, other_states[other_oscillatory])
+    moved = dict(zip(named.tolist(), pick.tolist()))
+    return [replace(m, reference_mode=moved.get(m.reference_mode, -1)) for m in modes]
 
 
 def confirmed_modes(modes: list[IdentifiedMode]) -> int:
