@@ -607,8 +607,9 @@ def _identify(
     a = _analyse(p, s, choice, choice.block_rows, progress)
     tried = [a.ref.q]
     retry = _retry_block_rows(p, choice, a)
-    if retry is not None and _retry_confirms_more(p, s, choice, a, retry):
-        b = _analyse(p, s, choice, retry, within(progress, f"{retry} block rows"))
+    other = None if retry is None else _retry_reference(p, s, choice, a, retry, progress)
+    if other is not None:
+        b = _analyse(p, s, choice, retry, within(progress, f"{retry} block rows"), other)
         tried.append(b.ref.q)
         if summary.confirmed_modes(b.modes) > summary.confirmed_modes(a.modes):
             a = b
@@ -658,16 +659,15 @@ class _Analysis:
 
 def _analyse(
     p: Prepared, s: Settings, choice: order.OrderChoice, q: int,
-    progress: ProgressCallback | None,
+    progress: ProgressCallback | None, ref: reference.Reference | None = None,
 ) -> _Analysis:
     """Reference model, bootstrap, clusters, modes and refinement of the prepared band at
-    the chosen orders and ``q`` block rows."""
+    the chosen orders and ``q`` block rows (``ref``: the reference model there, if made
+    already)."""
     warnings: list[str] = []
     tell(progress, "reference")
-    ref = reference.build_reference(
-        p.z, p.Hs, p.scales, p.line_weights, choice.reference, p.T,
-        p.band_rad_s, s.zeta_max, s.coalescence, p.pole_map, q,
-    )
+    if ref is None:
+        ref = _reference(p, s, choice, q)
     dispersion, H_ref, snr2 = 1.0, None, None
     params = whitening.mode_parameters(*p.Hs.shape[1:])
     if p.variance is not None:
@@ -773,12 +773,22 @@ def _retry_block_rows(p: Prepared, choice: order.OrderChoice, a: _Analysis) -> i
     return q if q > a.ref.q else None
 
 
-def _retry_confirms_more(p: Prepared, s: Settings, choice: order.OrderChoice, a: _Analysis,
-                         q: int) -> bool:
-    """Whether the second analysis at ``q`` block rows (:func:`_retry_block_rows`) is worth
-    its bootstrap: the refinement of the first analysis's modes, started from the poles of
-    a reference model at ``q`` rows (:func:`automodal.core.summary.restarted`) instead of
-    the first reference's, confirms more physical modes than the first analysis did.
+def _reference(p: Prepared, s: Settings, choice: order.OrderChoice,
+               q: int) -> reference.Reference:
+    """The reference model of the band at the chosen order and ``q`` block rows."""
+    return reference.build_reference(
+        p.z, p.Hs, p.scales, p.line_weights, choice.reference, p.T,
+        p.band_rad_s, s.zeta_max, s.coalescence, p.pole_map, q,
+    )
+
+
+def _retry_reference(p: Prepared, s: Settings, choice: order.OrderChoice, a: _Analysis,
+                     q: int, progress: ProgressCallback | None) -> reference.Reference | None:
+    """The reference model at ``q`` block rows for the second analysis
+    (:func:`_retry_block_rows`) when that analysis is worth its bootstrap, else ``None``:
+    the refinement of the first analysis's modes, started from the poles of the reference
+    model at ``q`` rows (:func:`automodal.core.summary.restarted`) instead of the first
+    reference's, must confirm more physical modes than the first analysis did.
 
     Where the default rows' poles are biased this shows it (the scan rows' poles are the
     data's, and the refinement holds them); where the first analysis's unconfirmed modes
@@ -786,16 +796,14 @@ def _retry_confirms_more(p: Prepared, s: Settings, choice: order.OrderChoice, a:
     does not support at any rows), it confirms no more, and the second bootstrap, as costly
     as ``(q ny)^3``, is saved. The second analysis itself decides what is reported, as
     before (its own clusters and refinement)."""
-    other = reference.build_reference(
-        p.z, p.Hs, p.scales, p.line_weights, choice.reference, p.T,
-        p.band_rad_s, s.zeta_max, s.coalescence, p.pole_map, q,
-    )
+    tell(within(progress, f"{q} block rows, whether to analyse again"), "refinement")
+    other = _reference(p, s, choice, q)
     moved = summary.restarted(a.clustered, a.ref.modal.poles, a.ref.modal.oscillatory,
                               other.modal.poles, other.modal.oscillatory)
     trial = summary.refine_physical_modes(
         moved, other.modal.poles, other.modal.oscillatory, p.omega, p.H, p.noise_variance,
         p.pole_map, s.jobs)
-    return summary.confirmed_modes(trial) > summary.confirmed_modes(a.modes)
+    return other if summary.confirmed_modes(trial) > summary.confirmed_modes(a.modes) else None
 
 
 def _replicates(

@@ -468,8 +468,11 @@ def restarted(
 
     Each reference mode the modes name (``oscillatory[reference_mode]`` of ``states``) is
     replaced by the other model's mode closest to it within its refinement's reach
-    (:func:`automodal.core.refine.starts_within_reach`), one to one; a mode whose
-    reference mode has none gets ``reference_mode`` -1 and is not refined.
+    (:func:`automodal.core.refine.starts_within_reach`; the reach's neighbours are the
+    first model's other poles, as the refinement's fixed poles are), one to one, the
+    physical modes' reference modes first (they are the ones refined; the others only
+    name the companions a refinement may promote); a mode whose reference mode has none
+    gets ``reference_mode`` -1 and is not refined.
 
     Parameters
     ----------
@@ -480,12 +483,22 @@ def restarted(
     other_states, other_oscillatory
         The same of the other model.
     """
-    named = np.array(sorted({m.reference_mode for m in modes if m.reference_mode >= 0}),
-                     dtype=int)
-    own = oscillatory[named]
-    others = np.delete(states, own)
-    pick = starts_within_reach(states[own], others, other_states[other_oscillatory])
-    moved = dict(zip(named.tolist(), pick.tolist()))
+    physical = {m.reference_mode for m in modes if m.physical and m.reference_mode >= 0}
+    rest = {m.reference_mode for m in modes if m.reference_mode >= 0} - physical
+    candidates = other_states[other_oscillatory]
+    free = np.ones(candidates.size, bool)
+    moved: dict[int, int] = {}
+    for named in (np.array(sorted(physical), dtype=int), np.array(sorted(rest), dtype=int)):
+        own = np.zeros(states.size, bool)
+        own[oscillatory[named]] = True
+        # a pole pair by its upper pole, as the refinement's fixed poles (the starts'
+        # own conjugates would make every reach its floor)
+        others = states[~own & (states.imag >= 0)]
+        pick = starts_within_reach(states[oscillatory[named]], others, candidates[free])
+        kept = np.flatnonzero(free)
+        for i, j in zip(named.tolist(), pick.tolist()):
+            moved[i] = int(kept[j]) if j >= 0 else -1
+        free[kept[pick[pick >= 0]]] = False
     return [replace(m, reference_mode=moved.get(m.reference_mode, -1)) for m in modes]
 
 
