@@ -795,9 +795,17 @@ def _retry_reference(p: Prepared, s: Settings, choice: order.OrderChoice, a: _An
     are not a bias of the rows (a pole beside a mode of the noise, a mode the likelihood
     does not support at any rows), it confirms no more, and the second bootstrap, as costly
     as ``(q ny)^3``, is saved. The second analysis itself decides what is reported, as
-    before (its own clusters and refinement)."""
-    tell(within(progress, f"{q} block rows, whether to analyse again"), "refinement")
+    before (its own clusters and refinement).
+
+    The check can only speak for the modes the first analysis found. Where the refinement
+    disowned most of them, the bias spoiled the first analysis's clusters too (a 7 x 12
+    grid with a sensor noise floor, 42 outputs: 9 physical modes in a band, 8 unconfirmed,
+    against 45 at the scan's rows), so the band is analysed again without the check."""
     other = _reference(p, s, choice, q)
+    physical = sum(1 for m in a.modes if m.physical)
+    if 2 * summary.unconfirmed_modes(a.modes) > physical:
+        return other
+    tell(within(progress, f"{q} block rows, whether to analyse again"), "refinement")
     moved = summary.restarted(a.clustered, a.ref.modal.poles, a.ref.modal.oscillatory,
                               other.modal.poles, other.modal.oscillatory)
     trial = summary.refine_physical_modes(

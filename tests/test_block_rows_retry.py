@@ -109,6 +109,20 @@ def test_no_second_analysis_when_the_scan_rows_poles_confirm_no_more(chain, monk
     assert orders["block_rows_tried"] == [orders["block_rows"]]
 
 
+def test_a_first_analysis_whose_modes_are_mostly_unconfirmed_is_redone_without_the_check(
+        chain, monkeypatch):
+    # the refinement disowned every physical mode of the first analysis: its clusters are
+    # no basis for the check, and the second analysis runs at once (its refinement is the
+    # second call)
+    seen: list = []
+    orders, calls, _ = _identify(chain, monkeypatch, ["all", False], seen)
+    assert calls == 2
+    first, second = orders["block_rows_tried"]
+    assert second > first
+    assert orders["block_rows"] == second
+    assert seen[1][1].shape != seen[0][1].shape or not np.allclose(seen[1][1], seen[0][1])
+
+
 def test_starts_within_reach_pairs_closest_first_one_to_one_and_within_reach():
     start = np.array([-0.1 + 10j, -0.1 + 12j])
     others = np.array([-5.0 + 40j])
