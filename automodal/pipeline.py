@@ -607,9 +607,8 @@ def _identify(
     a = _analyse(p, s, choice, choice.block_rows, progress)
     tried = [a.ref.q]
     retry = _retry_block_rows(p, choice, a)
-    other = None if retry is None else _retry_reference(p, s, choice, a, retry, progress)
-    if other is not None:
-        b = _analyse(p, s, choice, retry, within(progress, f"{retry} block rows"), other)
+    if retry is not None:
+        b = _analyse(p, s, choice, retry, within(progress, f"{retry} block rows"))
         tried.append(b.ref.q)
         if summary.confirmed_modes(b.modes) > summary.confirmed_modes(a.modes):
             a = b
@@ -654,20 +653,20 @@ class _Analysis:
     clusters: reference.Clusters
     modes: list[IdentifiedMode]
     warnings: list[str]
-    clustered: list[IdentifiedMode] = field(default_factory=list)
 
 
 def _analyse(
     p: Prepared, s: Settings, choice: order.OrderChoice, q: int,
-    progress: ProgressCallback | None, ref: reference.Reference | None = None,
+    progress: ProgressCallback | None,
 ) -> _Analysis:
     """Reference model, bootstrap, clusters, modes and refinement of the prepared band at
-    the chosen orders and ``q`` block rows (``ref``: the reference model there, if made
-    already)."""
+    the chosen orders and ``q`` block rows."""
     warnings: list[str] = []
     tell(progress, "reference")
-    if ref is None:
-        ref = _reference(p, s, choice, q)
+    ref = reference.build_reference(
+        p.z, p.Hs, p.scales, p.line_weights, choice.reference, p.T,
+        p.band_rad_s, s.zeta_max, s.coalescence, p.pole_map, q,
+    )
     dispersion, H_ref, snr2 = 1.0, None, None
     params = whitening.mode_parameters(*p.Hs.shape[1:])
     if p.variance is not None:
@@ -684,14 +683,13 @@ def _analyse(
         clusters.subspaces, ref.modes, p.scales, ref.contribution, s.n_bootstrap,
         s.min_physicalness, snr2, params,
     )
-    clustered = modes
     if _refined(p):
         tell(progress, "refinement")
         modes = summary.refine_physical_modes(
             modes, ref.modal.poles, ref.modal.oscillatory, p.omega, p.H, p.noise_variance,
             p.pole_map, s.jobs)
     return _Analysis(ref=ref, dispersion=dispersion, reps=reps, clusters=clusters,
-                     modes=modes, warnings=warnings, clustered=clustered)
+                     modes=modes, warnings=warnings)
 
 
 def _check_decaying(p: Prepared, ref: reference.Reference, snr2: np.ndarray,
@@ -771,47 +769,6 @@ def _retry_block_rows(p: Prepared, choice: order.OrderChoice, a: _Analysis) -> i
     N, ny, nu = p.Hs.shape
     q = min(subspace.scan_block_rows(choice.reference, ny), order.block_row_budget(N, ny, nu))
     return q if q > a.ref.q else None
-
-
-def _reference(p: Prepared, s: Settings, choice: order.OrderChoice,
-               q: int) -> reference.Reference:
-    """The reference model of the band at the chosen order and ``q`` block rows."""
-    return reference.build_reference(
-        p.z, p.Hs, p.scales, p.line_weights, choice.reference, p.T,
-        p.band_rad_s, s.zeta_max, s.coalescence, p.pole_map, q,
-    )
-
-
-def _retry_reference(p: Prepared, s: Settings, choice: order.OrderChoice, a: _Analysis,
-                     q: int, progress: ProgressCallback | None) -> reference.Reference | None:
-    """The reference model at ``q`` block rows for the second analysis
-    (:func:`_retry_block_rows`) when that analysis is worth its bootstrap, else ``None``:
-    the refinement of the first analysis's modes, started from the poles of the reference
-    model at ``q`` rows (:func:`automodal.core.summary.restarted`) instead of the first
-    reference's, must confirm more physical modes than the first analysis did.
-
-    Where the default rows' poles are biased this shows it (the scan rows' poles are the
-    data's, and the refinement holds them); where the first analysis's unconfirmed modes
-    are not a bias of the rows (a pole beside a mode of the noise, a mode the likelihood
-    does not support at any rows), it confirms no more, and the second bootstrap, as costly
-    as ``(q ny)^3``, is saved. The second analysis itself decides what is reported, as
-    before (its own clusters and refinement).
-
-    The check can only speak for the modes the first analysis found. Where the refinement
-    disowned most of them, the bias spoiled the first analysis's clusters too (a 7 x 12
-    grid with a sensor noise floor, 42 outputs: 9 physical modes in a band, 8 unconfirmed,
-    against 45 at the scan's rows), so the band is analysed again without the check."""
-    other = _reference(p, s, choice, q)
-    physical = sum(1 for m in a.modes if m.physical)
-    if 2 * summary.unconfirmed_modes(a.modes) > physical:
-        return other
-    tell(within(progress, f"{q} block rows, whether to analyse again"), "refinement")
-    moved = summary.restarted(a.clustered, a.ref.modal.poles, a.ref.modal.oscillatory,
-                              other.modal.poles, other.modal.oscillatory)
-    trial = summary.refine_physical_modes(
-        moved, other.modal.poles, other.modal.oscillatory, p.omega, p.H, p.noise_variance,
-        p.pole_map, s.jobs)
-    return other if summary.confirmed_modes(trial) > summary.confirmed_modes(a.modes) else None
 
 
 def _replicates(

@@ -547,43 +547,6 @@ def _reach(start: np.ndarray, others: np.ndarray) -> np.ndarray:
     return np.maximum(MAX_MOVE * half, TERRITORY * gap)
 
 
-def starts_within_reach(start: np.ndarray, others: np.ndarray,
-                        candidates: np.ndarray) -> np.ndarray:
-    """For each pole of ``start``, the index of the pole of ``candidates`` that replaces it
-    as a refinement's start, or -1: one-to-one, closest pairs first (the distance in the
-    start's half-bandwidths), and only within the start's reach (:func:`_reach`, with
-    ``others`` the model's other poles), the furthest a refinement from it may move.
-
-    Parameters
-    ----------
-    start : ndarray, shape (m,)
-        Poles of one model.
-    others : ndarray
-        That model's other poles (their reach's neighbours).
-    candidates : ndarray, shape (k,)
-        Poles of another model of the same data.
-
-    Returns
-    -------
-    ndarray of int, shape (m,)
-    """
-    start = np.asarray(start, complex)
-    candidates = np.asarray(candidates, complex)
-    out = np.full(start.size, -1, dtype=int)
-    if start.size == 0 or candidates.size == 0:
-        return out
-    distance = np.abs(candidates[None, :] - start[:, None])
-    allowed = distance <= _reach(start, np.asarray(others, complex))[:, None]
-    scaled = distance / np.maximum(np.abs(start.real), 1e-12)[:, None]
-    rows, cols = np.nonzero(allowed)
-    taken = np.zeros(candidates.size, bool)
-    for k in np.lexsort((cols, rows, scaled[rows, cols])):  # ties in index order
-        i, j = rows[k], cols[k]
-        if out[i] < 0 and not taken[j]:
-            out[i], taken[j] = j, True
-    return out
-
-
 def _fit_holding_strays(
     s: np.ndarray, sw: np.ndarray, Y: np.ndarray, free0: np.ndarray, fixed: np.ndarray,
     max_iterations: int, pmap: Callable,

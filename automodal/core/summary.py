@@ -18,13 +18,7 @@ from automodal.core import clustering, physicalness
 from automodal.core.matching import mode_numbers
 from automodal.core.modal import ModeSet, mpc, normalise_shapes, unit_max_shapes
 from automodal.core.pole_map import PoleMap
-from automodal.core.refine import (
-    PoleRefinement,
-    duplicate_poles,
-    refine_poles,
-    residue_shapes,
-    starts_within_reach,
-)
+from automodal.core.refine import PoleRefinement, duplicate_poles, refine_poles, residue_shapes
 from automodal.result import IdentifiedMode
 
 
@@ -457,49 +451,6 @@ def refine_physical_modes(
             **_fit_shape(m, shapes[:, j]), estimator="ml",
         ))
     return finished(out)
-
-
-def restarted(
-    modes: list[IdentifiedMode], states: np.ndarray, oscillatory: np.ndarray,
-    other_states: np.ndarray, other_oscillatory: np.ndarray,
-) -> list[IdentifiedMode]:
-    """The modes with their reference modes moved to another reference model of the same
-    data, for :func:`refine_physical_modes` to start from its poles.
-
-    Each reference mode the modes name (``oscillatory[reference_mode]`` of ``states``) is
-    replaced by the other model's mode closest to it within its refinement's reach
-    (:func:`automodal.core.refine.starts_within_reach`; the reach's neighbours are the
-    first model's other poles, as the refinement's fixed poles are), one to one, the
-    physical modes' reference modes first (they are the ones refined; the others only
-    name the companions a refinement may promote); a mode whose reference mode has none
-    gets ``reference_mode`` -1 and is not refined.
-
-    Parameters
-    ----------
-    modes : list of IdentifiedMode
-        From :func:`summarise_clusters` on the first reference model.
-    states, oscillatory
-        The first model's poles of all its states, and the indices of its modes.
-    other_states, other_oscillatory
-        The same of the other model.
-    """
-    physical = {m.reference_mode for m in modes if m.physical and m.reference_mode >= 0}
-    rest = {m.reference_mode for m in modes if m.reference_mode >= 0} - physical
-    candidates = other_states[other_oscillatory]
-    free = np.ones(candidates.size, bool)
-    moved: dict[int, int] = {}
-    for named in (np.array(sorted(physical), dtype=int), np.array(sorted(rest), dtype=int)):
-        own = np.zeros(states.size, bool)
-        own[oscillatory[named]] = True
-        # a pole pair by its upper pole, as the refinement's fixed poles (the starts'
-        # own conjugates would make every reach its floor)
-        others = states[~own & (states.imag >= 0)]
-        pick = starts_within_reach(states[oscillatory[named]], others, candidates[free])
-        kept = np.flatnonzero(free)
-        for i, j in zip(named.tolist(), pick.tolist()):
-            moved[i] = int(kept[j]) if j >= 0 else -1
-        free[kept[pick[pick >= 0]]] = False
-    return [replace(m, reference_mode=moved.get(m.reference_mode, -1)) for m in modes]
 
 
 def confirmed_modes(modes: list[IdentifiedMode]) -> int:
