@@ -19,7 +19,6 @@ median wall time is printed with the scorer's line for the last report.
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import json
 import statistics
 import subprocess
@@ -30,18 +29,14 @@ from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[1]
-FAMILY = ROOT.parent / "shared" / "eval" / "family.py"
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_noise import FAMILY, load_family  # noqa: E402
 
 
 def _family():
     if not FAMILY.exists():
         sys.exit(f"{FAMILY} is absent: this benchmark needs the evaluation family's generator")
-    spec = importlib.util.spec_from_file_location("family", FAMILY)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules["family"] = module  # its dataclasses look themselves up there
-    spec.loader.exec_module(module)
-    return module
+    return load_family(FAMILY)
 
 
 def _chain_case(fam, name: str, n: int, outs: list[int], ins: list[int], top: float,

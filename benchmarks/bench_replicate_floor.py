@@ -27,6 +27,7 @@ from __future__ import annotations
 import argparse
 import json
 import time
+from pathlib import Path
 
 import numpy as np
 from threadpoolctl import threadpool_limits
@@ -65,7 +66,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--cores", type=int, default=2)
     ap.add_argument("--repeat", type=int, default=5)
     a = ap.parse_args(argv)
-    report = json.loads(open(a.report).read())
+    report = json.loads(Path(a.report).read_text())
     B = int(report["settings"]["n_bootstrap"])
     rng = np.random.default_rng(0)
     ran = reported = 0.0

@@ -170,21 +170,20 @@ def split_stable_groups(
     """
     out: list[np.ndarray] = []
     capacity: list[int] = []
-    # every group's union and single correlations from two products over all the modes
+    # every group's union and best single correlations from two products over all the
+    # modes, in the order of the groups of two or more
     several = [g for g in groups if g.size >= 2]
-    unions = subspace_correlations([orthonormal_basis(o_ref[:, g]) for g in several], o_boot)
-    singles = (np.abs(o_ref[:, np.concatenate(several)].conj().T @ o_boot) ** 2
-               if several else np.zeros((0, o_boot.shape[1])))
-    ends = np.cumsum([g.size for g in several], dtype=int)
-    j = 0
+    unions = iter(subspace_correlations([orthonormal_basis(o_ref[:, g]) for g in several],
+                                        o_boot))
+    singles = iter(np.maximum.reduceat(
+        np.abs(o_ref[:, np.concatenate(several)].conj().T @ o_boot) ** 2,
+        np.cumsum([0] + [g.size for g in several[:-1]]), axis=0) if several else ())
     for g in groups:
         if g.size < 2:
             out.append(g)
             capacity.append(1)
             continue
-        rho_union = unions[j]
-        rho_single = np.max(singles[ends[j] - g.size : ends[j]], axis=0)
-        j += 1
+        rho_union, rho_single = next(unions), next(singles)
         near = rho_union >= threshold
         per_rep = np.bincount(replicate[near], minlength=n_bootstrap)
         full = np.count_nonzero(per_rep >= g.size) >= min_full * n_bootstrap

@@ -303,8 +303,7 @@ def still_falling(orders: np.ndarray, misfit, share: float = 0.05) -> bool:
     :func:`plateaued` read as a floor; the true order was 160.
     """
     orders = np.asarray(orders)
-    # below the identification's precision a misfit is rounding (as in plateaued)
-    misfit = np.maximum(np.asarray(misfit, dtype=float), MODEL_PRECISION)
+    misfit = _at_least_precision(misfit)
     best = np.minimum.accumulate(np.where(np.isfinite(misfit), misfit, np.inf))
     if orders.size < 3 or not np.isfinite(best[-1]):
         return False
@@ -322,6 +321,12 @@ def _settled(orders: np.ndarray, misfit, patience: int) -> bool:
     return plateaued(orders, misfit, patience) and not still_falling(orders, misfit)
 
 
+def _at_least_precision(misfit) -> np.ndarray:
+    """Misfits with those below :data:`MODEL_PRECISION` read as that precision: below the
+    identification's own precision a misfit is rounding (see :func:`plateaued`)."""
+    return np.maximum(np.asarray(misfit, dtype=float), MODEL_PRECISION)
+
+
 def plateaued(orders: np.ndarray, misfit, patience: int = 24) -> bool:
     """Whether the best misfit has not improved by 10 % over the last ``patience`` states.
 
@@ -332,7 +337,7 @@ def plateaued(orders: np.ndarray, misfit, patience: int = 24) -> bool:
     test was written on).
     """
     orders = np.asarray(orders)
-    misfit = np.maximum(np.asarray(misfit, dtype=float), MODEL_PRECISION)
+    misfit = _at_least_precision(misfit)
     past = orders <= orders[-1] - patience
     if not past.any() or past.all():
         return False
