@@ -378,13 +378,11 @@ def identify(
     -------
     Result
     """
-    from threadpoolctl import threadpool_limits
-
     s = settings or Settings()
     # One BLAS thread for the many small dense problems (measured: 0.75 s against 0.9 s
     # end to end on a 6-DOF chain, and far steadier on a busy machine); the replicates
     # share the cores through worker threads (automodal.core.parallel).
-    with threadpool_limits(1):
+    with parallel.blas_threads(1):
         data = input_stage(data, s, progress)  # time series become FRFs here
         return _identify(data, s, progress)
 
@@ -425,8 +423,6 @@ def input_stage(
         if isinstance(data, TimeSeries):
             tell(progress, "spectra")
         return as_frfdata(data)
-    from threadpoolctl import threadpool_limits
-
     from automodal.core import ambient_plan
     from automodal.core.from_time import USABLE_FRACTION
 
@@ -436,7 +432,7 @@ def input_stage(
     first_pass = within(progress, "first pass")
     tell(first_pass, "spectra")
     first = as_frfdata(data, nperseg=m0)
-    with threadpool_limits(1):
+    with parallel.blas_threads(1):
         # the first pass only finds the modes (its warnings are not kept): the automatic
         # block rows serve it, whatever block_rows the analysis asks for
         first_result = _identify(first, replace(s, n_bootstrap=min(

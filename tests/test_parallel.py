@@ -5,10 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from automodal.core import bilinear, bootstrap, replicates, subspace
+from automodal.core import bilinear, bootstrap, parallel, replicates, subspace
 from automodal.core import simulate as sim
 from automodal.core.parallel import (
     PARALLEL_MIN_FLOPS,
+    blas_threads,
     free_cores,
     freeing_map,
     gather,
@@ -147,6 +148,26 @@ def test_thread_map_keeps_input_order(n_jobs):
     with thread_map(n_jobs) as pmap:
         out = list(pmap(lambda x: x * x, range(20)))
     assert out == [x * x for x in range(20)]
+
+
+def _blas_threads_now() -> list[int]:
+    from threadpoolctl import threadpool_info
+
+    return [p["num_threads"] for p in threadpool_info() if p["user_api"] == "blas"]
+
+
+def test_blas_threads_limits_every_blas_and_restores_it_and_reuses_its_controller():
+    import scipy.linalg  # noqa: F401  (its own BLAS, loaded before the controller is made)
+
+    before = _blas_threads_now()
+    assert before
+    with blas_threads(1):
+        assert _blas_threads_now() == [1] * len(before)
+        first = parallel._controller()
+        with thread_map(2) as pmap:  # nested, as a map inside the pipeline's limit
+            assert list(pmap(lambda _: _blas_threads_now(), range(2))) == [[1] * len(before)] * 2
+        assert parallel._controller() is first  # no import since: the same controller
+    assert _blas_threads_now() == before
 
 
 def test_gather_joins_in_chunk_order_and_reports_progress():

@@ -128,13 +128,86 @@ def test_the_duplicate_test_stops_once_its_answer_is_known(monkeypatch):
 
     cases = [(np.array([poles[1], twin]), poles[[0, 2, 3]]), (poles, np.zeros(0))]
     stopping = [duplicate_poles(omega, H, variance, free, fixed) for free, fixed in cases]
-    whole = refine._gauss_newton
-    monkeypatch.setattr(refine, "_gauss_newton",
-                        lambda prob, free, n, strayed=None, enough=-np.inf:
-                        whole(prob, free, n, strayed))
+    whole = refine._levenberg_marquardt
+    monkeypatch.setattr(refine, "_levenberg_marquardt",
+                        lambda fit, normal, free, n, strayed=None, enough=-np.inf:
+                        whole(fit, normal, free, n, strayed))
     to_the_end = [duplicate_poles(omega, H, variance, free, fixed) for free, fixed in cases]
     assert [d.tolist() for d in stopping] == [d.tolist() for d in to_the_end]
     assert stopping[0].sum() == 1 and not stopping[1].any()
+
+
+def _gram_case(seed=0):
+    """A whitened problem (the chain's first and last poles fixed) and its two middle poles,
+    one of them moved off its resonance, as the pair tests see them."""
+    from automodal.core.refine import _Problem, _whitened
+
+    omega, H, variance, poles = _noisy_chain(seed)
+    s, sw, Y, _ = _whitened(omega, H, variance)
+    return _Problem.make(s, sw, Y, poles[[0, 3]]), poles[[1, 2]] * (1 + 0.002j)
+
+
+def _explicit(prob, free):
+    from automodal.core.refine import _fit, _jacobian_parts, _normal_equations
+
+    cost, C, R, Qp = _fit(prob, free)
+    normal, grad = _normal_equations(prob, _jacobian_parts(prob, free, C, Qp), R)
+    return cost, C, normal, grad
+
+
+def _assert_same_fit(gram, explicit, free):
+    cost, (C, *_) = gram.fit(free)
+    normal, grad = gram.normal_equations(free, gram.fit(free)[1])
+    want = explicit
+    np.testing.assert_allclose(cost, want[0], rtol=1e-9)
+    np.testing.assert_allclose(C, want[1], rtol=1e-7, atol=1e-9 * np.abs(want[1]).max())
+    np.testing.assert_allclose(normal, want[2], rtol=1e-7, atol=1e-9 * np.abs(want[2]).max())
+    np.testing.assert_allclose(grad, want[3], rtol=1e-6, atol=1e-8 * np.abs(want[3]).max())
+
+
+@pytest.mark.parametrize("free", [[0], [1], [0, 1]])
+def test_the_gram_fit_gives_the_explicit_fits_cost_residues_and_normal_equations(free):
+    from automodal.core.refine import _GramFit
+
+    prob, poles = _gram_case()
+    _assert_same_fit(_GramFit.make(prob), _explicit(prob, poles[free]), poles[free])
+
+
+def test_the_gram_fit_with_directions_left_out_is_the_extended_problems_fit():
+    """Every tested pole's columns in one basis ``Qt``, a pair's own left out: the pair
+    test's model, formed explicitly (the others' columns added to the fixed part)."""
+    from dataclasses import replace
+
+    from automodal.core.refine import _GramFit, _left_out, _orthonormal, _pair_columns, _qr, _stack
+
+    prob, poles = _gram_case(1)
+    tested = np.concatenate([poles, poles[:1] * (1 + 0.3j)])  # a third tested pole
+    Qt, Rt = _qr(prob.off_fixed(_stack(prob.sw[:, None] * _pair_columns(prob.s, tested))))
+    QtY = Qt.T @ prob.Yf
+    every = _GramFit.make(prob, Qt, QtY)
+    for keep in ([False, True, True], [True, False, True], [False, False, True]):
+        cols = np.repeat(keep, 2)
+        test = every.without(_left_out(Rt[:, cols]))
+        U = _orthonormal(Rt[:, cols])
+        explicit = replace(prob, Qf=np.hstack([prob.Qf, Qt @ U]),
+                           Yf=prob.Yf - Qt @ (U @ (U.T @ QtY)))
+        free = tested[~np.array(keep)]
+        _assert_same_fit(test, _explicit(explicit, free), free)
+    np.testing.assert_allclose(every.yy, np.sum(prob.Yf**2) - np.sum(QtY**2), rtol=1e-12)
+
+
+def test_the_gram_fit_forms_the_residual_where_the_difference_would_lose_its_digits():
+    """Noise-free data fitted by their own poles: the cost is rounding, not the
+    difference of two sums of 1e18."""
+    from automodal.core.refine import _fit, _GramFit, _Problem, _whitened
+
+    omega, H, poles, _ = _chain()
+    s, sw, Y, _ = _whitened(omega, H, np.full(H.shape, 1e-18))
+    prob = _Problem.make(s, sw, Y, poles[[0, 3]])
+    gram = _GramFit.make(prob)
+    cost = gram.fit(poles[[1, 2]])[0]
+    assert gram.yy > 1e12 and abs(cost) < 1e-9 * gram.yy
+    np.testing.assert_allclose(cost, _fit(prob, poles[[1, 2]])[0], atol=1e-6 * abs(cost) + 1e-3)
 
 
 def test_distinct_modes_are_not_duplicates():

@@ -23,6 +23,7 @@ from automodal.core import calibration as cal
 from automodal.core.damping_equalization import TestModel, fit_test_model, pair_modes
 from automodal.core.fe_model import ParametrizedModel, undamped_modes
 from automodal.core.modal import mac
+from automodal.core.parallel import blas_threads
 from automodal.errors import InputError
 from automodal.frfdata import FRFData
 from automodal.progress import ProgressCallback, counter
@@ -181,8 +182,6 @@ def calibrate_data(
     -------
     CalibrationOutcome
     """
-    from threadpoolctl import threadpool_limits
-
     from automodal.core.noise import averages_from_attributes, estimate_noise
     from automodal.quantities import quantity_power
 
@@ -197,7 +196,7 @@ def calibrate_data(
         records=None if data.records is None else data.records[:, lines],
         n_averages=averages_from_attributes(data.attributes))
     power = quantity_power(data.quantity)
-    with threadpool_limits(1):
+    with blas_threads(1):
         test = cal.refit_test_model(omega, H, noise.variance,
                                     fit_test_model(omega, H, poles, power, noise.variance))
         fallback = (model.damping if model.damping is not None

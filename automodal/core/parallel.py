@@ -11,6 +11,7 @@ combines them in order (:func:`gather`).
 from __future__ import annotations
 
 import os
+import sys
 import threading
 from collections.abc import Callable, Iterable, Iterator, Sequence, Sized
 from contextlib import contextmanager
@@ -105,17 +106,48 @@ def worker_count(jobs: int | None, n_tasks: int, flops: float = float("inf")) ->
     return max(1, min(int(jobs), n_tasks))
 
 
+_CONTROLLER: list[Any] = [None, -1]
+"""threadpoolctl's controller of the loaded native thread pools, and the number of imported
+modules when it was made (see :func:`blas_threads`)."""
+
+
+def _controller() -> Any:
+    """A ``threadpoolctl.ThreadpoolController`` of the libraries loaded now, made again only
+    after more modules were imported (a new extension module may bring its own BLAS).
+
+    Making one searches every loaded shared library: 1.4-3 ms, which
+    ``threadpool_limits`` paid on each of the 20-40 maps of a run; its ``limit`` alone
+    takes 20 microseconds. Call with :data:`_LIMITS` held."""
+    from threadpoolctl import ThreadpoolController
+
+    if _CONTROLLER[0] is None or _CONTROLLER[1] != len(sys.modules):
+        _CONTROLLER[0] = ThreadpoolController()
+        _CONTROLLER[1] = len(sys.modules)
+    return _CONTROLLER[0]
+
+
+@contextmanager
+def blas_threads(n: int) -> Iterator[None]:
+    """At most ``n`` threads in each loaded BLAS (and OpenMP) pool while the context lasts,
+    as ``threadpoolctl.threadpool_limits(n)``, the previous limits restored after.
+
+    threadpoolctl's limits are process-wide and not thread-safe: contexts entered from
+    several threads at once (sub-bands side by side) set and restore them in turn."""
+    with _LIMITS:
+        limits = _controller().limit(limits=n)
+    try:
+        yield
+    finally:
+        with _LIMITS:
+            limits.restore_original_limits()
+
+
 @contextmanager
 def thread_map(n_jobs: int) -> Iterator[Callable[..., Iterator[Any]]]:
     """A ``map`` over ``n_jobs`` threads (the built-in ``map`` for one), with one BLAS
-    thread while the context lasts. Results come in the order of the inputs."""
-    from threadpoolctl import threadpool_limits
-
-    # threadpoolctl's limits are process-wide and not thread-safe: maps entered from
-    # several threads at once (sub-bands side by side) set and restore them in turn
-    with _LIMITS:
-        limits = threadpool_limits(1)
-    try:
+    thread while the context lasts (:func:`blas_threads`). Results come in the order of
+    the inputs."""
+    with blas_threads(1):
         if n_jobs == 1:
             yield map
             return
@@ -123,9 +155,6 @@ def thread_map(n_jobs: int) -> Iterator[Callable[..., Iterator[Any]]]:
 
         with ThreadPoolExecutor(max_workers=n_jobs) as pool:
             yield pool.map
-    finally:
-        with _LIMITS:
-            limits.restore_original_limits()
 
 
 @contextmanager
