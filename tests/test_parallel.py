@@ -159,6 +159,8 @@ def _blas_threads_now() -> list[int]:
 def test_blas_threads_limits_every_blas_and_restores_it_and_reuses_its_controller():
     import scipy.linalg  # noqa: F401  (its own BLAS, loaded before the controller is made)
 
+    with thread_map(2) as pmap:  # the thread pool's modules imported before the controller
+        list(pmap(abs, range(2)))
     before = _blas_threads_now()
     assert before
     with blas_threads(1):
@@ -167,6 +169,25 @@ def test_blas_threads_limits_every_blas_and_restores_it_and_reuses_its_controlle
         with thread_map(2) as pmap:  # nested, as a map inside the pipeline's limit
             assert list(pmap(lambda _: _blas_threads_now(), range(2))) == [[1] * len(before)] * 2
         assert parallel._controller() is first  # no import since: the same controller
+    assert _blas_threads_now() == before
+
+
+def test_a_limit_set_on_a_worker_thread_does_not_keep_the_others_from_limiting():
+    """OpenBLAS's shared pool obeys one controlling thread (threadpoolctl 3.8): a worker
+    that set and restored a limit, and lives on, must have let go of it."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    import scipy.linalg  # noqa: F401
+
+    def limited_once() -> None:
+        with blas_threads(1):
+            pass
+
+    before = _blas_threads_now()
+    with ThreadPoolExecutor(1) as pool:
+        pool.submit(limited_once).result()  # the worker stays alive until the pool closes
+        with blas_threads(1):
+            assert _blas_threads_now() == [1] * len(before)
     assert _blas_threads_now() == before
 
 

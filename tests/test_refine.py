@@ -210,6 +210,62 @@ def test_the_gram_fit_forms_the_residual_where_the_difference_would_lose_its_dig
     np.testing.assert_allclose(cost, _fit(prob, poles[[1, 2]])[0], atol=1e-6 * abs(cost) + 1e-3)
 
 
+def _dynamic_range_case(seed=0, strong=1e6):
+    """Modes at 30 and 70 Hz ``strong`` times the one at 50 Hz, and a genuine weak mode 0.7
+    half-bandwidths from it (noise 1 % of the 50 Hz mode): the whitened data's sum of
+    squares is 1e19, the pair's 1e3."""
+    rng = np.random.default_rng(seed)
+    omega = 2 * np.pi * np.linspace(1.0, 100.0, 600)
+    s = 1j * omega
+    wn = 2 * np.pi * np.array([30.0, 50.0, 70.0])
+    z = np.array([0.01, 0.01, 0.02])
+    lam = wn * (-z + 1j * np.sqrt(1 - z**2))
+    R = sim.complex_gaussian((3, 6), 2.0, rng) * (wn * np.array([strong, 1.0, strong]))[:, None]
+    twin = lam[1] + 0.7 * abs(lam[1].real) * np.exp(0.5j)
+    Rw = 6e-3 * sim.complex_gaussian(6, 2.0, rng) * wn[1]
+    H = sum(R[k] / (s[:, None] - lam[k]) + R[k].conj() / (s[:, None] - lam[k].conj())
+            for k in range(3))
+    H = H + Rw / (s[:, None] - twin) + Rw.conj() / (s[:, None] - twin.conj())
+    sd = 1e-2 * np.sqrt(np.mean(np.abs(R[1] / (s[:, None] - lam[1])) ** 2))
+    H = H + sd * sim.complex_gaussian(H.shape, 1.0, rng)
+    return omega, H, np.full(H.shape, sd**2), np.array([lam[0], lam[1], twin, lam[2]])
+
+
+def test_the_gram_fit_forms_the_fit_line_by_line_where_its_sums_would_lose_the_cost():
+    """Tested poles that explain all but 1e-16 of the data: the pair test's costs as the
+    explicit fit's (the difference of the sums would have lost them), so a genuine weak mode
+    beside a mode is kept."""
+    from dataclasses import replace
+
+    from automodal.core.refine import (
+        _fit,
+        _GramFit,
+        _left_out,
+        _orthonormal,
+        _pair_columns,
+        _Problem,
+        _qr,
+        _stack,
+        _whitened,
+    )
+
+    omega, H, variance, poles = _dynamic_range_case()
+    s, sw, Y, _ = _whitened(omega, H, variance)
+    base = _Problem.make(s, sw, Y, np.zeros(0))
+    Qt, Rt = _qr(base.off_fixed(_stack(sw[:, None] * _pair_columns(s, poles))))
+    QtY = Qt.T @ base.Yf
+    every = _GramFit.make(base, Qt, QtY)
+    assert np.sum(base.Yf**2) > 1e15 * every.yy
+    cols = np.repeat([True, False, False, True], 2)  # the pair (50 Hz and its twin) tested
+    U = _orthonormal(Rt[:, cols])
+    explicit = replace(base, Qf=np.hstack([base.Qf, Qt @ U]),
+                       Yf=base.Yf - Qt @ (U @ (U.T @ QtY)))
+    test = every.without(_left_out(Rt[:, cols]))
+    for free in (poles[[1]], poles[[2]], poles[[1, 2]]):
+        np.testing.assert_allclose(test.fit(free)[0], _fit(explicit, free)[0], rtol=1e-8)
+    assert not duplicate_poles(omega, H, variance, poles, np.zeros(0)).any()
+
+
 def test_distinct_modes_are_not_duplicates():
     omega, H, variance, poles = _noisy_chain()
     assert not duplicate_poles(omega, H, variance, poles, np.zeros(0)).any()

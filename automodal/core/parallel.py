@@ -132,14 +132,20 @@ def blas_threads(n: int) -> Iterator[None]:
     as ``threadpoolctl.threadpool_limits(n)``, the previous limits restored after.
 
     threadpoolctl's limits are process-wide and not thread-safe: contexts entered from
-    several threads at once (sub-bands side by side) set and restore them in turn."""
+    several threads at once (sub-bands side by side) set and restore them in turn. The
+    limiter is entered and exited as threadpoolctl's context manager: OpenBLAS's shared pool
+    obeys one thread at a time (threadpoolctl 3.8), which the exit releases, so a worker
+    thread that set a limit does not keep the others' limits from taking effect. (A BLAS
+    loaded after the controller was made without an import, through ``ctypes``, is not
+    limited.)"""
     with _LIMITS:
-        limits = _controller().limit(limits=n)
+        limiter = _controller().limit(limits=n)
+        limiter.__enter__()
     try:
         yield
     finally:
         with _LIMITS:
-            limits.restore_original_limits()
+            limiter.__exit__(None, None, None)
 
 
 @contextmanager

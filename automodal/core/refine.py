@@ -517,10 +517,15 @@ def _levenberg_marquardt(
     return free, it, cost
 
 
-GRAM_CANCELLATION = 1e-6
-"""Where a :class:`_GramFit` leaves less than this share of the data's whitened sum of
-squares, its cost is the residual's sum formed line by line rather than the difference of
-the two sums (which would keep fewer than ten of its digits)."""
+GRAM_ACCURACY = 1e-6
+"""A :class:`_GramFit` evaluation is used only where its cost's rounding error bound is
+below this share of the cost; elsewhere the fit is formed line by line (:func:`_fit`'s)."""
+
+GRAM_CONDITION = 1e8
+"""Nor where the free columns' normalised Gram matrix is worse conditioned than this (two
+poles a few 1e-6 half-bandwidths apart), or where less than ``1 / GRAM_CONDITION`` of a
+free column's square norm is left off the basis: the Gram matrices then keep fewer than
+eight digits of what decides the fit."""
 
 
 @dataclass(frozen=True)
@@ -530,10 +535,11 @@ class _GramFit:
     The model's other columns span ``Qf`` (the fixed part, orthonormal) and
     ``Qt (I - V V^T)``: ``Qt`` (orthonormal, off ``Qf``) with the directions ``V`` (in its
     coordinates, orthonormal) left out. ``Yf`` is the data off ``Qf``, ``QtY = Qt^T Yf``.
-    So :func:`duplicate_poles` tests a pair against all the other tested poles (``Qt`` of
-    all of them, ``V`` the pair's own directions) without forming each test's basis (the
-    fixed part's and the others' columns, orthonormal over all the lines: 6.6 ms per test
-    on a 21 x 3 dense grid of 2000 lines, seed 797 f_29).
+    So :func:`duplicate_poles` tests a pair against all the other tested poles that are
+    still in the model (``Qt`` of all of them; ``V`` the directions of the pair and of the
+    duplicates found before) without forming each test's basis (the fixed part's and the
+    others' columns, orthonormal over all the lines: 6.6 ms per test on a 21 x 3 dense grid
+    of 2000 lines, seed 797 f_29).
 
     Each evaluation reads ``[Qf, Qt]`` and ``Yf`` once, for the free poles' columns ``X``
     and their derivatives ``D`` together (``Z = [X D]``): ``Z``'s Gram matrix off the
@@ -541,9 +547,13 @@ class _GramFit:
     Kaufman's Gauss-Newton matrix and gradient as :func:`_fit` and
     :func:`_normal_equations` do; those form every projected column and the residual
     explicitly (four passes over the basis and three over the data per iteration, 17 ms
-    per test there). The numbers agree to rounding as long as the free poles' columns stand
-    clear of the others (``tests/test_refine.py``); where they depend on each other, this
-    fit is the least-norm one, where a Householder QR would keep a direction of rounding.
+    per test there). The cost is a difference of sums of squares, ``yy - b^T G^-1 b``: its
+    rounding error is about ``eps (yy + |b| |Yf|)``, so where that bound is not below
+    :data:`GRAM_ACCURACY` of the cost (the tested poles explain nearly all of data whose
+    dynamic range is 150 dB), or where ``G`` is ill-conditioned or the free columns lie
+    almost within the basis (:data:`GRAM_CONDITION`), the evaluation forms the projected
+    columns and the residual over all the lines and fits them with a Householder QR, as
+    :func:`_fit` does. Both agree with :func:`_fit` to rounding (``tests/test_refine.py``).
     """
 
     s: np.ndarray  # i omega, (N,)
@@ -555,17 +565,20 @@ class _GramFit:
     QtY: np.ndarray  # Qt^T Yf, (t, E)
     VQY: np.ndarray  # V^T QtY, (v, E)
     yy: float  # the data's sum of squares off the basis
+    scale: float  # |Yf|, the data's norm off Qf: the rounding of every product with it
 
     @classmethod
     def make(cls, prob: _Problem, Qt: np.ndarray | None = None,
              QtY: np.ndarray | None = None) -> _GramFit:
-        """The fit against ``prob``'s fixed part and all of ``Qt`` (``QtY = Qt^T Yf``)."""
+        """The fit against ``prob``'s fixed part and all of ``Qt`` (``QtY = Qt^T Yf``).
+        The data's sum of squares off that basis is formed line by line, once."""
         if Qt is None or QtY is None:
             Qt, QtY = prob.Qf[:, :0], np.zeros((0, prob.Yf.shape[1]))
-        yy = float(np.sum(prob.Yf * prob.Yf) - np.sum(QtY * QtY))
+        rest = prob.Yf - Qt @ QtY
         return cls(s=prob.s, sw=prob.sw, B=np.hstack([prob.Qf, Qt]), p=prob.Qf.shape[1],
                    V=np.zeros((QtY.shape[0], 0)), Yf=prob.Yf, QtY=QtY,
-                   VQY=np.zeros((0, QtY.shape[1])), yy=yy)
+                   VQY=np.zeros((0, QtY.shape[1])), yy=float(np.sum(rest * rest)),
+                   scale=float(np.linalg.norm(prob.Yf)))
 
     def without(self, V: np.ndarray) -> _GramFit:
         """The same fit with the directions ``V`` of ``Qt`` left out of the basis (in
@@ -584,14 +597,24 @@ class _GramFit:
         ZY = Z.T @ self.Yf - At.T @ self.QtY + Vt.T @ self.VQY
         return ZZ, ZY, A
 
-    def _residual(self, Z: np.ndarray, A: np.ndarray, C: np.ndarray) -> np.ndarray:
-        """The data less the basis and ``Z C``, formed line by line."""
+    def _explicit(self, X: np.ndarray, A: np.ndarray) -> tuple[float, np.ndarray]:
+        """Cost and coefficients of the free columns ``X`` (``A = B^T X``) as :func:`_fit`
+        finds them: the columns and the data off the basis formed line by line, the columns
+        normalised and fitted by one Householder QR."""
         Qt = self.B[:, self.p:]
-        At = A[self.p:]
-        kept_Y = self.QtY - self.V @ self.VQY
-        kept_Z = At - self.V @ (self.V.T @ At)
-        PZ = Z - self.B[:, : self.p] @ A[: self.p] - Qt @ kept_Z
-        return self.Yf - Qt @ kept_Y - PZ @ C
+        kept = A[self.p:] - self.V @ (self.V.T @ A[self.p:])
+        P = X - self.B[:, : self.p] @ A[: self.p] - Qt @ kept
+        Y = self.Yf - Qt @ (self.QtY - self.V @ self.VQY)
+        norms = np.linalg.norm(P, axis=0)
+        norms = np.where(norms > 0, norms, 1.0)
+        Qp, Rt = _qr(P / norms[None, :])
+        QY = Qp.T @ Y
+        R = Y - Qp @ QY
+        try:
+            C = np.linalg.solve(Rt, QY) / norms[:, None]
+        except np.linalg.LinAlgError:
+            C = np.linalg.lstsq(Rt, QY, rcond=None)[0] / norms[:, None]
+        return float(np.sum(R * R)), C
 
     def fit(self, free: np.ndarray, derivatives: bool = True) -> tuple[float, tuple]:
         """The cost at ``free`` and the state :meth:`normal_equations` needs (without
@@ -604,22 +627,28 @@ class _GramFit:
             cols.append(_pair_derivatives(self.s, free))
         Z = _stack(self.sw[:, None] * np.concatenate(cols, axis=1))
         ZZ, ZY, A = self._grams(Z)
-        norms = np.sqrt(np.maximum(np.diag(ZZ)[:k], 0.0))
+        left = np.diag(ZZ)[:k]
+        norms = np.sqrt(np.maximum(left, 0.0))
         norms = np.where(norms > 0, norms, 1.0)
         G = ZZ[:k, :k] / np.outer(norms, norms)
         b = ZY[:k] / norms[:, None]
-        try:
-            c = sla.solve_triangular(np.linalg.cholesky(G), b, lower=True, check_finite=False)
-            explained = float(np.sum(c * c))
-            Cn = np.linalg.solve(G, b)
-        except np.linalg.LinAlgError:  # the columns depend on each other: a least-norm fit
-            Cn = np.linalg.pinv(G, rcond=1e-10, hermitian=True) @ b
-            explained = float(np.sum(b * Cn))
-        C = Cn / norms[:, None]
-        cost = self.yy - explained
-        if cost < GRAM_CANCELLATION * self.yy:
-            R = self._residual(Z[:, :k], A[:, :k], C)
-            cost = float(np.sum(R * R))
+        cost, C = np.nan, None
+        whole = np.einsum("ij,ij->j", Z[:, :k], Z[:, :k])
+        cond = np.linalg.cond(G)
+        if np.all(left > whole / GRAM_CONDITION) and cond < GRAM_CONDITION:
+            L = np.linalg.cholesky(G)
+            c = sla.solve_triangular(L, b, lower=True, check_finite=False)
+            cost = self.yy - float(np.sum(c * c))
+            # the rounding of yy - c^T c: G's (its condition) and b's (the products with
+            # the data, each column's norm over its part off the basis)
+            ratio = float(np.sqrt(np.max(whole / left)))
+            bound = 64.0 * np.finfo(float).eps * (
+                cond * self.yy + np.linalg.norm(c) * self.scale * ratio)
+            if bound < GRAM_ACCURACY * cost:
+                C = sla.solve_triangular(L.T, c, lower=False, check_finite=False)
+                C = C / norms[:, None]
+        if C is None:
+            cost, C = self._explicit(Z[:, :k], A[:, :k])
         return cost, (C, ZZ, ZY, G, norms)
 
     def normal_equations(self, free: np.ndarray, state: tuple) -> tuple[np.ndarray, np.ndarray]:
