@@ -196,6 +196,24 @@ def test_the_gram_fit_with_directions_left_out_is_the_extended_problems_fit():
     np.testing.assert_allclose(every.yy, np.sum(prob.Yf**2) - np.sum(QtY**2), rtol=1e-12)
 
 
+def test_the_gram_fit_is_formed_line_by_line_where_its_gram_matrix_is_not_positive(
+        monkeypatch):
+    """Rounding can leave a nearly singular Gram matrix indefinite: the Cholesky factor then
+    fails, and the evaluation is the explicit fit's, not an error."""
+    from automodal.core.refine import _GramFit
+
+    prob, poles = _gram_case()
+    want = _explicit(prob, poles)
+
+    def indefinite(_):
+        raise np.linalg.LinAlgError("not positive definite")
+
+    monkeypatch.setattr(np.linalg, "cholesky", indefinite)
+    cost, (C, *_) = _GramFit.make(prob).fit(poles)
+    np.testing.assert_allclose(cost, want[0], rtol=1e-9)
+    np.testing.assert_allclose(C, want[1], rtol=1e-7, atol=1e-9 * np.abs(want[1]).max())
+
+
 def test_the_gram_fit_forms_the_residual_where_the_difference_would_lose_its_digits():
     """Noise-free data fitted by their own poles: the cost is rounding, not the
     difference of two sums of 1e18."""

@@ -523,9 +523,9 @@ below this share of the cost; elsewhere the fit is formed line by line (:func:`_
 
 GRAM_CONDITION = 1e8
 """Nor where the free columns' normalised Gram matrix is worse conditioned than this (two
-poles a few 1e-6 half-bandwidths apart), or where less than ``1 / GRAM_CONDITION`` of a
-free column's square norm is left off the basis: the Gram matrices then keep fewer than
-eight digits of what decides the fit."""
+poles about 1e-3.5 half-bandwidths apart: 1.6e7 at 1e-3, 1.6e9 at 1e-4 on a 4-DOF chain),
+or where less than ``1 / GRAM_CONDITION`` of a free column's square norm is left off the
+basis: the Gram matrices then keep fewer than eight digits of what decides the fit."""
 
 
 @dataclass(frozen=True)
@@ -635,8 +635,11 @@ class _GramFit:
         cost, C = np.nan, None
         whole = np.einsum("ij,ij->j", Z[:, :k], Z[:, :k])
         cond = np.linalg.cond(G)
-        if np.all(left > whole / GRAM_CONDITION) and cond < GRAM_CONDITION:
+        try:  # rounding can leave a nearly singular G indefinite: then line by line
             L = np.linalg.cholesky(G)
+        except np.linalg.LinAlgError:
+            L = None
+        if np.all(left > whole / GRAM_CONDITION) and cond < GRAM_CONDITION and L is not None:
             c = sla.solve_triangular(L, b, lower=True, check_finite=False)
             cost = self.yy - float(np.sum(c * c))
             # the rounding of yy - c^T c: G's (its condition) and b's (the products with
