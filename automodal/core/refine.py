@@ -333,25 +333,30 @@ class _Problem:
         return real + imaginary
 
 
+def _column_space(Phi: np.ndarray, full: bool) -> tuple[np.ndarray, int]:
+    """Left singular vectors of ``Phi`` with its columns normalised (all of them with
+    ``full``), and how many span its column space numerically (singular values above
+    1e-10 of the largest)."""
+    norms = np.linalg.norm(Phi, axis=0)
+    U, sv, _ = np.linalg.svd(Phi / np.where(norms > 0, norms, 1.0)[None, :],
+                             full_matrices=full)
+    return U, int(np.sum(sv > sv[0] * 1e-10)) if sv.size else 0
+
+
 def _orthonormal(Phi: np.ndarray) -> np.ndarray:
     """Orthonormal basis of the column space of ``Phi`` (columns normalised first; columns
     that add nothing numerically are dropped)."""
-    norms = np.linalg.norm(Phi, axis=0)
-    U, sv, _ = np.linalg.svd(Phi / np.where(norms > 0, norms, 1.0)[None, :],
-                             full_matrices=False)
-    return U[:, sv > sv[0] * 1e-10] if sv.size else U
+    U, rank = _column_space(Phi, full=False)
+    return U[:, :rank] if Phi.shape[1] else U
 
 
 def _left_out(R: np.ndarray) -> np.ndarray:
     """Orthonormal directions ``(t, v)`` of ``R^t`` outside the column space of ``R``
     ``(t, k)``, as :func:`_orthonormal` would cut it: with ``Q`` orthonormal, ``Q R``'s
     basis is ``Q (I - V V^T)``."""
-    t = R.shape[0]
     if R.shape[1] == 0:
-        return np.eye(t)
-    norms = np.linalg.norm(R, axis=0)
-    U, sv, _ = np.linalg.svd(R / np.where(norms > 0, norms, 1.0)[None, :])
-    rank = int(np.sum(sv > sv[0] * 1e-10)) if sv.size else 0
+        return np.eye(R.shape[0])
+    U, rank = _column_space(R, full=True)
     return U[:, rank:]
 
 
@@ -391,10 +396,7 @@ def _fit(
     """
     h = prob.halves
     _, parts = _off_basis(prob, prob.sw[:, None] * _pair_columns(prob.s, free))
-    P = np.vstack(parts)
-    norms = np.linalg.norm(P, axis=0)
-    norms = np.where(norms > 0, norms, 1.0)
-    Qp, Rt = _qr(P / norms[None, :])
+    Qp, Rt, norms = _normalised_qr(np.vstack(parts))
     QY = prob.summed(lambda i: Qp[h[i]].T @ prob.Yf[h[i]])
     R = np.empty_like(prob.Yf)
 
@@ -402,12 +404,26 @@ def _fit(
         R[h[i]] = prob.Yf[h[i]] - Qp[h[i]] @ QY
         return float(np.sum(R[h[i]] * R[h[i]]))
 
-    cost = prob.summed(residual)
+    return prob.summed(residual), _coefficients(Rt, QY, norms), R, Qp
+
+
+def _normalised_qr(P: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """One Householder QR of ``P`` with its columns normalised: ``Q``, ``R`` and the
+    columns' norms (1 for a zero column)."""
+    norms = np.linalg.norm(P, axis=0)
+    norms = np.where(norms > 0, norms, 1.0)
+    Q, R = _qr(P / norms[None, :])
+    return Q, R, norms
+
+
+def _coefficients(R: np.ndarray, QY: np.ndarray, norms: np.ndarray) -> np.ndarray:
+    """The least-squares coefficients of the columns whose :func:`_normalised_qr` is
+    ``(Q, R, norms)``, from ``QY = Q^T Y`` (a least-norm solve where ``R`` is singular)."""
     try:
-        C = np.linalg.solve(Rt, QY) / norms[:, None]
+        C = np.linalg.solve(R, QY)
     except np.linalg.LinAlgError:
-        C = np.linalg.lstsq(Rt, QY, rcond=None)[0] / norms[:, None]
-    return cost, C, R, Qp
+        C = np.linalg.lstsq(R, QY, rcond=None)[0]
+    return C / norms[:, None]
 
 
 def _coefficient_rows(free: np.ndarray, C: np.ndarray) -> np.ndarray:
@@ -457,10 +473,8 @@ def _gauss_newton(
 
     ``strayed(poles)`` (a boolean mask) ends the fit as soon as a pole has left what a
     refinement may do: the caller holds it fixed and fits again, so the remaining
-    iterations would be wasted. The fit also ends once the cost is below ``enough``: a
-    caller that only asks whether the cost can get that low (:func:`duplicate_poles`) has
-    its answer, since accepted steps never raise the cost (the fit run to its end gives the
-    same answer, but for a comparison within the last bit of ``enough``)."""
+    iterations would be wasted. ``enough`` as for :func:`_levenberg_marquardt`, whose
+    loop this is on the explicit fit (:func:`_fit`)."""
     def fit(poles: np.ndarray) -> tuple[float, tuple]:
         cost, *state = _fit(prob, poles)
         return cost, tuple(state)
@@ -481,7 +495,12 @@ def _levenberg_marquardt(
 ) -> tuple[np.ndarray, int, float]:
     """:func:`_gauss_newton` on any evaluation of the variable-projection problem:
     ``fit(poles)`` gives the cost and a state, ``normal_equations(poles, state)`` the
-    Gauss-Newton matrix and gradient there."""
+    Gauss-Newton matrix and gradient there.
+
+    The fit ends once the cost is below ``enough``: a caller that only asks whether the
+    cost can get that low (:func:`duplicate_poles`) has its answer, since accepted steps
+    never raise the cost (the fit run to its end gives the same answer, but for a
+    comparison within the last bit of ``enough``)."""
     cost, state = fit(free)
     damping = 1e-3
     it = 0
@@ -587,15 +606,16 @@ class _GramFit:
         yy = self.yy + float(np.sum(VQY * VQY) - np.sum(self.VQY * self.VQY))
         return replace(self, V=V, VQY=VQY, yy=yy)
 
-    def _grams(self, Z: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``Z``'s Gram matrix off the basis, its product with the data off the basis, and
-        its coefficients on the basis (``B^T Z``)."""
+    def _grams(self, Z: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """``Z``'s Gram matrix off the basis, its product with the data off the basis, its
+        coefficients on the basis (``B^T Z``) and its columns' whole square norms."""
         A = self.B.T @ Z
         Af, At = A[: self.p], A[self.p:]
         Vt = self.V.T @ At
-        ZZ = Z.T @ Z - Af.T @ Af - At.T @ At + Vt.T @ Vt
+        ZtZ = Z.T @ Z
+        ZZ = ZtZ - Af.T @ Af - At.T @ At + Vt.T @ Vt
         ZY = Z.T @ self.Yf - At.T @ self.QtY + Vt.T @ self.VQY
-        return ZZ, ZY, A
+        return ZZ, ZY, A, np.diag(ZtZ)
 
     def _explicit(self, X: np.ndarray, A: np.ndarray) -> tuple[float, np.ndarray]:
         """Cost and coefficients of the free columns ``X`` (``A = B^T X``) as :func:`_fit`
@@ -605,16 +625,10 @@ class _GramFit:
         kept = A[self.p:] - self.V @ (self.V.T @ A[self.p:])
         P = X - self.B[:, : self.p] @ A[: self.p] - Qt @ kept
         Y = self.Yf - Qt @ (self.QtY - self.V @ self.VQY)
-        norms = np.linalg.norm(P, axis=0)
-        norms = np.where(norms > 0, norms, 1.0)
-        Qp, Rt = _qr(P / norms[None, :])
+        Qp, Rt, norms = _normalised_qr(P)
         QY = Qp.T @ Y
         R = Y - Qp @ QY
-        try:
-            C = np.linalg.solve(Rt, QY) / norms[:, None]
-        except np.linalg.LinAlgError:
-            C = np.linalg.lstsq(Rt, QY, rcond=None)[0] / norms[:, None]
-        return float(np.sum(R * R)), C
+        return float(np.sum(R * R)), _coefficients(Rt, QY, norms)
 
     def fit(self, free: np.ndarray, derivatives: bool = True) -> tuple[float, tuple]:
         """The cost at ``free`` and the state :meth:`normal_equations` needs (without
@@ -626,14 +640,13 @@ class _GramFit:
         if derivatives:
             cols.append(_pair_derivatives(self.s, free))
         Z = _stack(self.sw[:, None] * np.concatenate(cols, axis=1))
-        ZZ, ZY, A = self._grams(Z)
-        left = np.diag(ZZ)[:k]
+        ZZ, ZY, A, whole = self._grams(Z)
+        whole, left = whole[:k], np.diag(ZZ)[:k]
         norms = np.sqrt(np.maximum(left, 0.0))
         norms = np.where(norms > 0, norms, 1.0)
         G = ZZ[:k, :k] / np.outer(norms, norms)
         b = ZY[:k] / norms[:, None]
-        cost, C = np.nan, None
-        whole = np.einsum("ij,ij->j", Z[:, :k], Z[:, :k])
+        C = None
         cond = np.linalg.cond(G)
         try:  # rounding can leave a nearly singular G indefinite: then line by line
             L = np.linalg.cholesky(G)
