@@ -191,6 +191,20 @@ def test_coherence_calibrates_unknown_averages() -> None:
     assert_within(est.variance, sig)
 
 
+@pytest.mark.parametrize("seed", [0, 3])
+def test_coherence_calibrates_averages_on_a_band_of_noise_alone(seed: int) -> None:
+    """A band where the FRF is far below the noise (an accelerance's low end): H1 then
+    regresses noise on the realized force, and its coherence law is heavy tailed from line
+    to line. The calibrated ``n_d`` is the whole band's, and the variance right (a ratio
+    against the smooth data-alone model had given ``n_d`` 21-30 for 8 and half the std)."""
+    H = modal_frf(n_in=2, n_lines=1600)
+    H[:600] *= 1e-4
+    H1, coh, _, sig = h1_test(H, 0.05, 8, seed=seed)
+    est = noise.estimate_noise(H1[:600], coherence=coh[:600])
+    assert 6.5 <= est.n_averages <= 11
+    assert_within(est.variance, sig[:600])
+
+
 def test_coherence_needs_more_averages_than_inputs() -> None:
     H = modal_frf(n_in=2)
     with pytest.raises(ValueError, match="averages"):
