@@ -574,6 +574,10 @@ def _identify(
         # only multiplies the scans
         n_bands = sub_bands.sub_band_count(sub_bands.replicate_work(
             *p.Hs.shape, choice.reference, choice.block_rows))
+    if n_bands > 1 and not sub_bands.split_pays(
+            *p.Hs.shape, choice.n0, choice.reference, choice.block_rows,
+            order.reference_factor(choice.rule), n_bands):
+        n_bands = 1
     if n_bands > 1:
         plan = sub_bands.plan_sub_bands(
             p.frequency, p.Hs, n_bands, stabilization.stable_frequencies(

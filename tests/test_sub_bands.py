@@ -28,6 +28,21 @@ def test_work_and_count():
     assert sub_bands.sub_band_count(8.1e8, 2e8) == 3
 
 
+def test_split_pays_only_where_the_sub_bands_models_are_smaller():
+    # a dense grid whose order the modes set: 88 significant states, reference 176 on 8
+    # block rows; halves of 44 -> 88 states on 4 block rows, a quarter of the work
+    assert sub_bands.split_pays(1500, 37, 3, 88, 176, 8, 2.0, 2)
+    # a SISO band of many modes, 256 states: its block rows follow the order
+    assert sub_bands.split_pays(10_000, 1, 1, 86, 256, 257, 3.0, 3)
+    # noise alone: n0 = 2, the reference at its floor (22) on 15 block rows from two
+    # directions above the noise: four sub-bands would each need the same model
+    assert not sub_bands.split_pays(6000, 35, 3, 2, 22, 15, 2.0, 4)
+    # a reference near its floor falls too little to pay for nothing: n0 = 12 -> 32
+    # states, halves of 6 -> 26 states on as many block rows (4 x 35 rows)
+    assert not sub_bands.split_pays(6000, 35, 3, 12, 32, 4, 2.0, 2)
+    assert not sub_bands.split_pays(6000, 35, 3, 88, 176, 8, 2.0, 1)
+
+
 def test_plan_cuts_between_peaks_and_overlaps_by_one_resonance():
     data, _ = _siso_chain()
     f, H = data.frequency[1:], data.frf[1:]
@@ -221,3 +236,37 @@ def test_a_noise_weighted_split_run_plans_against_the_noise(split_everything, mo
                                rtol=1e-10)
     np.testing.assert_allclose(pipeline._noise_of_scaled(p, p), p.variance, rtol=1e-12)
     assert pipeline._noise_of_scaled(e, e) is None
+
+
+def _h1_of_noise_alone(n_lines: int, ny: int, nu: int, n_rec: int, seed: int):
+    """H1 and multiple coherence of responses that are noise alone, ``n_rec`` records of
+    random force."""
+    from automodal.frfdata import FRFData
+
+    rng = np.random.default_rng(seed)
+
+    def cn(*shape):
+        return (rng.standard_normal(shape) + 1j * rng.standard_normal(shape)) / np.sqrt(2)
+
+    U, Y = cn(n_rec, n_lines, nu), cn(n_rec, n_lines, ny)
+    Syu = np.einsum("rfi,rfj->fij", Y, U.conj()) / n_rec
+    Suu = np.einsum("rfi,rfj->fij", U, U.conj()) / n_rec
+    Syy = np.einsum("rfi,rfi->fi", Y, Y.conj()).real / n_rec
+    H1 = np.linalg.solve(Suu.transpose(0, 2, 1), Syu.transpose(0, 2, 1)).transpose(0, 2, 1)
+    coh = np.real(np.einsum("fij,fjk,fik->fi", H1, Suu, H1.conj())) / Syy
+    return FRFData(frequency=np.linspace(0.01, 30.0, n_lines), frf=H1,
+                   coherence=np.clip(coh, 0, 1)[:, :, None] * np.ones((1, 1, nu)),
+                   quantity="acceleration")
+
+
+def test_noise_alone_is_not_split():
+    """H1 of noise alone on 35 outputs: n0 = 2 and a reference of 22 states on the block
+    rows of two directions, too costly as one model by the work limit, and no smaller in
+    sub-bands: it stays whole (it was cut in four, each the same model), and nothing in it
+    is physical."""
+    data = _h1_of_noise_alone(1000, 35, 3, 8, seed=2)
+    res = identify(data, Settings(seed=1, n_bootstrap=20))
+    orders = res.orders
+    assert not orders.get("sub_bands") and orders["n0_rule"] != "sub-bands"
+    assert orders["reference"] <= 24
+    assert not any(m.physical for m in res.modes)

@@ -826,8 +826,7 @@ def select_orders(
             # the model test above judges the significant order itself; the directions
             # the noise leaves cap what that test keeps (never raise it)
             n0 = capped_order(orders, n0, directions)
-    factor = 3.0 if rule == "floor" else SIGNIFICANT_EXCESS
-    n_ref = excessive_order(n0, cap, factor)
+    n_ref = excessive_order(n0, cap, reference_factor(rule))
     n0 = min(n0, n_ref)
     q = subspace.block_rows(n_ref, ny)
     # a replicate's lines bound the block rows asked for beyond the default
@@ -840,6 +839,13 @@ def select_orders(
     return OrderChoice(scanned=orders, misfit=misfit, n0=n0, reference=n_ref, limit=n_limit,
                        chi2=chi2, rule=rule, models=models, block_rows=q, complete=complete,
                        noise_directions=directions)
+
+
+def reference_factor(rule: str) -> float:
+    """The reference order over ``n0`` (``factor`` of :func:`excessive_order`) after each
+    rule: 3 after the misfit floor, which stops short of the true order;
+    :data:`SIGNIFICANT_EXCESS` after the significance test, which does not."""
+    return 3.0 if rule == "floor" else SIGNIFICANT_EXCESS
 
 
 def order_off_the_noise(n0: int, floor: int, ny: int, rank: int | None) -> tuple[int, str]:
