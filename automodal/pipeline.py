@@ -674,8 +674,10 @@ def _analyse(
         dispersion = whitening.dispersion(H_ref, p.Hs, p.variance, choice.reference)
         snr2 = whitening.mode_snr2(ref.modal, p.z, p.variance, jobs=s.jobs) / dispersion
         _check_decaying(p, ref, snr2, params, s.zeta_max)  # before the bootstrap's work
+    outputs = None if p.variance is None else whitening.principal_outputs(
+        p.Hs, p.variance, choice.reference, ref.q)
     reps = _replicates(p, s, ref, choice.reference, counter(progress, "bootstrap", s.n_bootstrap),
-                       warnings, dispersion, H_ref)
+                       warnings, dispersion, H_ref, outputs)
     tell(progress, "summary")
     clusters = reference.cluster_against_reference(ref, reps, s.n_bootstrap, s.threshold)
     modes = summary.summarise_clusters(
@@ -780,10 +782,14 @@ def _replicates(
     warnings: list[str],
     dispersion: float = 1.0,
     H_ref: np.ndarray | None = None,
+    outputs: np.ndarray | None = None,
 ) -> replicates.ReplicatePoles:
     """The bootstrap: record replicates when the data have repeated records (and
     ``s.resample`` allows), noise replicates around the reference model's FRF ``H_ref``
-    with the noise model, else frequency-line replicates; all their modes stacked."""
+    with the noise model, else frequency-line replicates; all their modes stacked.
+    ``outputs``: the output directions the replicates identify on
+    (:func:`automodal.core.whitening.principal_outputs`; their shapes come back in every
+    output), or None for all the outputs."""
     from automodal.core.noise import mean_as_precise
 
     rng = np.random.default_rng(s.seed)
@@ -804,9 +810,11 @@ def _replicates(
         rw = bootstrap.record_weights(records.shape[0], s.n_bootstrap, rng)
         if p.factor is not None:  # in the models' form, as Hs
             records = records / p.factor[None, :, None, None]
+        records = records / p.scales[None, None, :, None]
+        if outputs is not None:
+            records = replicates.project_outputs(records, outputs)
         reps = replicates.run_record_replicates(
-            ref.basis, records / p.scales[None, None, :, None], n, p.T, rw, p.line_weights,
-            s.jobs, progress,
+            ref.basis, records, n, p.T, rw, p.line_weights, s.jobs, progress, outputs,
         )
         warnings.append(
             f"bootstrap over the {records.shape[0]} repeated records (each replicate averages"
@@ -816,7 +824,7 @@ def _replicates(
         seeds = rng.integers(0, 2**63 - 1, size=s.n_bootstrap)
         reps = replicates.run_noise_replicates(
             ref.basis, H_ref, p.variance * dispersion, n, p.T, seeds, p.line_weights,
-            s.jobs, progress,
+            s.jobs, progress, outputs,
         )
         warnings.append(
             f"bootstrap of the noise model (source: {p.noise.source}): each replicate is the"
@@ -829,8 +837,10 @@ def _replicates(
                             " not use (output-only data, or no noise model): frequency lines"
                             " resampled instead")
         weights = bootstrap.line_weights(p.H.shape[0], s.n_bootstrap, rng)
+        Hs = p.Hs if outputs is None else replicates.project_outputs(p.Hs, outputs)
         reps = replicates.run_replicates(
-            ref.basis, p.Hs, n, p.T, weights * p.line_weights[None, :], s.jobs, progress
+            ref.basis, Hs, n, p.T, weights * p.line_weights[None, :], s.jobs, progress,
+            outputs,
         )
         warnings.append(
             "bootstrap over frequency lines: the spread is conditional on the one noise"

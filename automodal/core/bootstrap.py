@@ -48,6 +48,7 @@ def replicates_from_schur(
     T: float,
     ny: int,
     qr_fallback: Callable[[int], np.ndarray] | None = None,
+    output_basis: np.ndarray | None = None,
 ) -> list[ReplicateModes]:
     """Identify ``A`` and ``C`` of a stack of replicates from their Schur complements, and
     their modes: one stacked ``eigh``, the normal-equation shift invariance, one stacked
@@ -64,11 +65,15 @@ def replicates_from_schur(
     T : float
         Bilinear scale.
     ny : int
-        Outputs.
+        Outputs of the data (the projected outputs when ``output_basis`` is given).
     qr_fallback : callable, optional
         ``qr_fallback(i)`` returns ``L22`` of replicate ``i`` of the stack on the QR path;
         when given, a replicate whose Gram-path subspace is not resolved
         (:func:`automodal.core.subspace.gram_resolves`) is recomputed from it.
+    output_basis : ndarray, shape (ny_full, ny), optional
+        The real orthonormal output directions the data were projected on
+        (:func:`automodal.core.whitening.principal_outputs`): the shapes are returned in
+        the full outputs, ``output_basis @ C psi``.
 
     Returns
     -------
@@ -87,8 +92,11 @@ def replicates_from_schur(
     mu = mu.astype(complex, copy=False)
     k, n_states = mu.shape
     psi = C @ V  # (k, ny, n): every shape of every replicate, normalised in one call
-    psi = normalise_shapes(psi.swapaxes(0, 1).reshape(ny, k * n_states))
-    psi = psi.reshape(ny, k, n_states).swapaxes(0, 1)
+    if output_basis is not None:
+        psi = output_basis @ psi
+    n_out = psi.shape[1]
+    psi = normalise_shapes(psi.swapaxes(0, 1).reshape(n_out, k * n_states))
+    psi = psi.reshape(n_out, k, n_states).swapaxes(0, 1)
     lam = poles_d2c(mu, T)
     out = []
     for i in range(k):

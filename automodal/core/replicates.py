@@ -68,6 +68,7 @@ def run_replicates(
     weights: np.ndarray,
     jobs: int | None,
     progress: Callable[[int], None] | None = None,
+    output_basis: np.ndarray | None = None,
 ) -> list[bootstrap.ReplicateModes]:
     """All frequency-line replicates' modes: one batched Gram product, then stacked small
     problems, in ``jobs`` threads (``None``: the free cores, and any core freed while they
@@ -89,6 +90,9 @@ def run_replicates(
         Worker threads.
     progress : callable, optional
         Called with the number of replicates finished since the last call.
+    output_basis : ndarray, shape (ny_full, ny), optional
+        The output directions ``H`` was projected on; the shapes are returned in the full
+        outputs (:func:`automodal.core.bootstrap.replicates_from_schur`).
     """
     B = weights.shape[0]
     ny = H.shape[1]
@@ -99,6 +103,7 @@ def run_replicates(
         return bootstrap.replicates_from_schur(
             S, n, basis, T, ny,
             qr_fallback=lambda i: subspace.projected_output_qr(basis, H, weights[r.start + i]),
+            output_basis=output_basis,
         )
 
     chunks = replicate_chunks(B, m, n)
@@ -116,6 +121,7 @@ def run_record_replicates(
     line_weights: np.ndarray,
     jobs: int | None,
     progress: Callable[[int], None] | None = None,
+    output_basis: np.ndarray | None = None,
 ) -> list[bootstrap.ReplicateModes]:
     """Replicates that each average a resample of the repeated records.
 
@@ -131,14 +137,15 @@ def run_record_replicates(
         Record multiplicities of each replicate.
     line_weights : ndarray, shape (N,)
         Line weights of every replicate's fit.
-    basis, n, T, jobs, progress
+    basis, n, T, jobs, progress, output_basis
         As in :func:`run_replicates`.
     """
     def average(b: int) -> np.ndarray:
         return np.einsum("r,rkij->kij", weights[b] / weights[b].sum(), records)
 
     return _own_schur_replicates(
-        average, weights.shape[0], records.shape[2], basis, n, T, line_weights, jobs, progress
+        average, weights.shape[0], records.shape[2], basis, n, T, line_weights, jobs, progress,
+        output_basis,
     )
 
 
@@ -152,6 +159,7 @@ def _own_schur_replicates(
     line_weights: np.ndarray,
     jobs: int | None,
     progress: Callable[[int], None] | None,
+    output_basis: np.ndarray | None = None,
 ) -> list[bootstrap.ReplicateModes]:
     """Replicates whose FRFs ``frf_of(b)`` each form their own Schur complement (the Gram
     sums are not linear in the FRF), stacked per chunk as in :func:`run_replicates`; the
@@ -164,6 +172,7 @@ def _own_schur_replicates(
         return bootstrap.replicates_from_schur(
             S, n, basis, T, ny,
             qr_fallback=lambda i: subspace.projected_output_qr(basis, Hb[i], line_weights),
+            output_basis=output_basis,
         )
 
     chunks = replicate_chunks(n_replicates, m, n)
@@ -181,6 +190,7 @@ def run_noise_replicates(
     line_weights: np.ndarray,
     jobs: int | None,
     progress: Callable[[int], None] | None = None,
+    output_basis: np.ndarray | None = None,
 ) -> list[bootstrap.ReplicateModes]:
     """Parametric replicates: the reference model's FRF plus fresh noise of the noise model.
 
@@ -193,25 +203,35 @@ def run_noise_replicates(
     Parameters
     ----------
     H_model : ndarray, shape (N, ny, nu)
-        The reference model's FRF at the analysed lines (channel-scaled).
+        The reference model's FRF at the analysed lines (channel-scaled), on every output
+        (with ``output_basis`` too: each replicate's noise is drawn on the outputs, then
+        projected).
     variance : ndarray, shape (N, ny, nu)
         Noise variance in the same units.
     seeds : ndarray of int, shape (B,)
         One seed per replicate.
     line_weights : ndarray, shape (N,)
         Line weights of every replicate's fit.
-    basis, n, T, jobs, progress
+    basis, n, T, jobs, progress, output_basis
         As in :func:`run_replicates`.
     """
     std = np.sqrt(np.asarray(variance, float) / 2.0)
 
     def draw(b: int) -> np.ndarray:
         g = np.random.default_rng(int(seeds[b])).standard_normal((2,) + H_model.shape)
-        return H_model + std * (g[0] + 1j * g[1])
+        Hb = H_model + std * (g[0] + 1j * g[1])
+        # the noise drawn on every output, then projected: its projection is correlated
+        return Hb if output_basis is None else project_outputs(Hb, output_basis)
 
+    ny = H_model.shape[1] if output_basis is None else output_basis.shape[1]
     return _own_schur_replicates(
-        draw, len(seeds), H_model.shape[1], basis, n, T, line_weights, jobs, progress
+        draw, len(seeds), ny, basis, n, T, line_weights, jobs, progress, output_basis,
     )
+
+
+def project_outputs(H: np.ndarray, output_basis: np.ndarray) -> np.ndarray:
+    """``output_basis^T H`` line by line: ``(..., N, ny, nu)`` to ``(..., N, r, nu)``."""
+    return np.einsum("ek,...ej->...kj", output_basis, H)
 
 
 def band_records(

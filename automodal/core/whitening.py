@@ -121,6 +121,49 @@ def output_rank(Hs: np.ndarray, variance: np.ndarray) -> int:
     return int(np.count_nonzero(sv > RANK_EDGE * sigma * (np.sqrt(N * nu) + np.sqrt(ny))))
 
 
+def principal_outputs(
+    Hs: np.ndarray, variance: np.ndarray, n: int, q: int
+) -> np.ndarray | None:
+    """Real orthonormal output directions that hold the data's structure, for the
+    bootstrap replicates of an ``n``-state model on ``q`` block rows; None when they are
+    all the outputs.
+
+    The FRF's lines are whitened as in :func:`output_rank` and stacked real
+    (``[Re X, Im X]``, ``ny x 2 N nu``: real directions keep the FRF's conjugate symmetry,
+    so the projected data are still those of a real system). The directions whose singular
+    values exceed the noise edge ``sigma / sqrt(2) (sqrt(2 N nu) + sqrt(ny))`` carry the
+    modes; twice as many are kept (a weak mode lifts a direction only a little above the
+    bulk), and at least ``ceil(1.2 n / (q - 1))``, so that ``(q - 1) r >= 1.2 n`` holds for
+    the ``r`` projected outputs as :func:`automodal.core.subspace.block_rows` asks.
+
+    Parameters
+    ----------
+    Hs : ndarray, shape (N, ny, nu)
+        Channel-scaled FRF.
+    variance : ndarray, shape (N, ny, nu)
+        Noise variance of ``Hs``'s entries.
+    n, q : int
+        Order and block rows of the replicates' models.
+
+    Returns
+    -------
+    ndarray, shape (ny, r), real, orthonormal columns, or None
+    """
+    N, ny, nu = Hs.shape
+    level = np.mean(variance, axis=(1, 2))
+    X = (Hs / np.sqrt(level)[:, None, None]).transpose(1, 0, 2).reshape(ny, N * nu)
+    sigma = np.sqrt(np.mean(variance / level[:, None, None]))
+    G = X.real @ X.real.T + X.imag @ X.imag.T  # [Re X, Im X] times its transpose
+    w, V = np.linalg.eigh(G)
+    w, V = w[::-1], V[:, ::-1]
+    edge = sigma / np.sqrt(2.0) * (np.sqrt(2.0 * N * nu) + np.sqrt(ny))
+    above = int(np.count_nonzero(np.sqrt(np.clip(w, 0.0, None)) > edge))
+    r = max(2 * above, int(np.ceil(1.2 * n / max(int(q) - 1, 1))), 1)
+    if r >= ny:
+        return None
+    return np.ascontiguousarray(V[:, :r])
+
+
 def whitened_residual(H_model: np.ndarray, H: np.ndarray, variance: np.ndarray) -> float:
     """``sum 2 |H_model - H|^2 / var`` over lines and entries: chi-square with ``2 N ny nu``
     degrees of freedom (less the fitted parameters) when the model is right."""
