@@ -94,6 +94,16 @@ this many times the largest that noise alone would give (the Marchenko-Pastur ed
 it a direction is not told from the noise."""
 
 
+def _lines_whitened(Hs: np.ndarray, variance: np.ndarray) -> tuple[np.ndarray, float]:
+    """The FRF as ``ny x N nu``, each line divided by its own noise level (the root of its
+    mean variance over the entries), and the noise std left (1 up to the entries'
+    spread)."""
+    N, ny, nu = Hs.shape
+    level = np.mean(variance, axis=(1, 2))
+    X = (Hs / np.sqrt(level)[:, None, None]).transpose(1, 0, 2).reshape(ny, N * nu)
+    return X, float(np.sqrt(np.mean(variance / level[:, None, None])))
+
+
 def output_rank(Hs: np.ndarray, variance: np.ndarray) -> int:
     """Directions of the outputs that stand out of the noise: singular values of the FRF
     (``ny`` x ``N nu``), each line divided by its own noise level (the root of its mean
@@ -114,9 +124,7 @@ def output_rank(Hs: np.ndarray, variance: np.ndarray) -> int:
         Noise variance of ``Hs``'s entries.
     """
     N, ny, nu = Hs.shape
-    level = np.mean(variance, axis=(1, 2))
-    X = (Hs / np.sqrt(level)[:, None, None]).transpose(1, 0, 2).reshape(ny, N * nu)
-    sigma = np.sqrt(np.mean(variance / level[:, None, None]))
+    X, sigma = _lines_whitened(Hs, variance)
     sv = np.linalg.svd(X, compute_uv=False)
     return int(np.count_nonzero(sv > RANK_EDGE * sigma * (np.sqrt(N * nu) + np.sqrt(ny))))
 
@@ -150,9 +158,7 @@ def principal_outputs(
     ndarray, shape (ny, r), real, orthonormal columns, or None
     """
     N, ny, nu = Hs.shape
-    level = np.mean(variance, axis=(1, 2))
-    X = (Hs / np.sqrt(level)[:, None, None]).transpose(1, 0, 2).reshape(ny, N * nu)
-    sigma = np.sqrt(np.mean(variance / level[:, None, None]))
+    X, sigma = _lines_whitened(Hs, variance)
     G = X.real @ X.real.T + X.imag @ X.imag.T  # [Re X, Im X] times its transpose
     w, V = np.linalg.eigh(G)
     w, V = w[::-1], V[:, ::-1]
