@@ -565,19 +565,19 @@ def _identify(
     prepared = p
     stages: dict = {}  # the scan's stages, for a rescan below
     p, choice = _choose_orders(prepared, s, rank, split_work, warnings, parent_order, stages)
-    n_bands = 1
+    wanted = n_bands = 1
     if s.sub_bands and s.max_order is None and (parent_order is None
                                                  or choice.reference < parent_order):
         # a part is split again only when splitting made its model smaller: where the order
         # comes from the noise and the lines rather than the modes (a 9-DOF chain over 51 201
         # lines: a 0.2 Hz sub-band with one mode still took 112 states), splitting again
         # only multiplies the scans
-        n_bands = sub_bands.sub_band_count(sub_bands.replicate_work(
+        wanted = sub_bands.sub_band_count(sub_bands.replicate_work(
             *p.Hs.shape, choice.reference, choice.block_rows))
-    if n_bands > 1 and not sub_bands.split_pays(
+    if wanted > 1 and sub_bands.split_pays(
             *p.Hs.shape, choice.n0, choice.reference, choice.block_rows,
-            order.reference_factor(choice.rule), n_bands):
-        n_bands = 1
+            order.reference_factor(choice.rule), wanted):
+        n_bands = wanted
     if n_bands > 1:
         plan = sub_bands.plan_sub_bands(
             p.frequency, p.Hs, n_bands, stabilization.stable_frequencies(
@@ -587,7 +587,7 @@ def _identify(
             return _identify_sub_bands(data, s, plan, warnings, progress, t0,
                                        choice.reference, part, p.factor is not None)
     if (split_work is not None and not choice.complete
-            and (n_bands > 1 or choice.reference >= (parent_order or 0) > 0)):
+            and (wanted > 1 or choice.reference >= (parent_order or 0) > 0)):
         # no split after all: the scan ended early, at a stage whose order had not settled
         # (a 9-DOF chain over 51 201 lines: n0 = 56 there against 36 when scanned on); a
         # scan that ended on its own would only be repeated (a dense grid's sub-band: 1.4 s
@@ -852,6 +852,12 @@ def _replicates(
                 " across lines, so the intervals of this line bootstrap are too narrow"
                 " (several times, on simulated tests); give the time records, or convert"
                 " them again, so that the bootstrap resamples stretches of the record")
+    if outputs is not None:
+        warnings.append(
+            f"the bootstrap replicates identified on {outputs.shape[1]} principal directions"
+            f" of the {outputs.shape[0]} outputs (twice those above the noise): their shapes"
+            " vary only within those directions, so mode_shape_std leaves out the noise in"
+            " the others")
     return replicates.stack_replicates(reps, p.H.shape[1], p.pole_map)
 
 

@@ -201,8 +201,24 @@ def test_coherence_calibrates_averages_on_a_band_of_noise_alone(seed: int) -> No
     H[:600] *= 1e-4
     H1, coh, _, sig = h1_test(H, 0.05, 8, seed=seed)
     est = noise.estimate_noise(H1[:600], coherence=coh[:600])
-    assert 6.5 <= est.n_averages <= 11
+    assert 7.0 <= est.n_averages <= 9.5
     assert_within(est.variance, sig[:600])
+
+
+@pytest.mark.parametrize("step", [20, 40])
+def test_coherence_of_zero_on_some_lines_leaves_the_calibration(step: int) -> None:
+    """A coherence of 0 (no law: ``U = |H|^2 / eps``) on one line in ``step`` must not
+    send the windows around it, and the trimmed mean after them, to 0 (it gave ``n_d``
+    1.8e18 and every variance at the precision floor); nor does a stretch of coherence 1."""
+    H1, coh, _, sig = h1_test(modal_frf(n_in=2, n_lines=1600), 0.05, 8, seed=1)
+    coh = coh.copy()
+    coh[::step] = 0.0
+    coh[100:130] = 1.0
+    est = noise.estimate_noise(H1, coherence=coh)
+    assert 7.0 <= est.n_averages <= 9.5
+    ok = (coh > 0) & (coh < 1)
+    r = np.sqrt(np.mean(est.variance[ok]) / np.mean(sig[ok] ** 2))
+    assert LO <= r <= HI
 
 
 def test_coherence_needs_more_averages_than_inputs() -> None:

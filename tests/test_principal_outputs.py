@@ -27,18 +27,28 @@ def many_sensors():
     var = noise.estimate_noise(H).variance
     scale = np.sqrt(np.mean(var, axis=(0, 2)))
     return (H / scale[None, :, None], var / scale[None, :, None] ** 2,
-            bilinear.to_unit_circle(w, T), T, modes)
+            bilinear.to_unit_circle(w, T), T, modes, data)
 
 
 def test_directions_are_real_orthonormal_and_fewer_than_the_outputs(many_sensors):
     Hs, var, *_ = many_sensors
-    n, q = 16, subspace.block_rows(16, 30)
+    n = 16
+    q = subspace.reference_block_rows(n, 30, whitening.output_rank(Hs, var))
     V = whitening.principal_outputs(Hs, var, n, q)
     assert V is not None and V.dtype == float
     r = V.shape[1]
     assert whitening.output_rank(Hs, var) <= r < 30
     assert (q - 1) * r >= 1.2 * n
     np.testing.assert_allclose(V.T @ V, np.eye(r), atol=1e-12)
+    # twice the directions of the real-stacked whitened FRF above the noise edge
+    level = np.mean(var, axis=(1, 2))
+    X = (Hs / np.sqrt(level)[:, None, None]).transpose(1, 0, 2).reshape(30, -1)
+    sv = np.linalg.svd(np.hstack([X.real, X.imag]), compute_uv=False)
+    N, nu = Hs.shape[0], Hs.shape[2]
+    above = int(np.sum(sv > (np.sqrt(2 * N * nu) + np.sqrt(30)) / np.sqrt(2)))
+    assert r == 2 * above == 18
+    # on 2 block rows the rank argument asks for more: (q - 1) r >= 1.2 n
+    assert whitening.principal_outputs(Hs, var, n, 2).shape[1] == 20
     # the data's structure stays: the projection keeps all but the noise's share
     off = Hs - np.einsum("ek,nkj->nej", V, replicates.project_outputs(Hs, V))
     assert np.sum(np.abs(off) ** 2) < 1.5 * np.sum(var) * (30 - r) / 30
@@ -46,6 +56,7 @@ def test_directions_are_real_orthonormal_and_fewer_than_the_outputs(many_sensors
 
 def test_no_projection_where_every_output_is_needed(many_sensors):
     Hs, var, *_ = many_sensors
+    assert whitening.principal_outputs(Hs, var, 16, 1) is None  # one block row
     # few outputs: the kept directions would be all of them
     assert whitening.principal_outputs(Hs[:, :4], var[:, :4], 8, 5) is None
     # block rows too few for the order on fewer outputs than the data have
@@ -55,7 +66,7 @@ def test_no_projection_where_every_output_is_needed(many_sensors):
 def test_replicates_on_the_directions_find_the_modes_with_their_full_shapes(many_sensors):
     """As accurate as the replicates on all 30 outputs, on the block rows the pipeline
     gives (:func:`automodal.core.subspace.reference_block_rows` of the outputs' rank)."""
-    Hs, var, z, T, modes = many_sensors
+    Hs, var, z, T, modes, _ = many_sensors
     n = 16
     q = subspace.reference_block_rows(n, 30, whitening.output_rank(Hs, var))
     V = whitening.principal_outputs(Hs, var, n, q)
@@ -76,3 +87,41 @@ def test_replicates_on_the_directions_find_the_modes_with_their_full_shapes(many
                 assert abs(np.abs(rep.poles[i]) / (2 * np.pi) / f - 1) < 1e-4
                 got.append(np.asarray(mac(rep.shapes[:, [i]], shapes_true[:, [k]])).item())
             assert min(got) > 0.98 and abs(got[0] - got[1]) < 0.005
+
+
+def test_noise_replicates_draw_on_every_output_then_project(many_sensors):
+    """Each noise replicate is the reference FRF plus noise drawn on all the outputs,
+    projected (the projected noise is correlated); the same as projecting by hand."""
+    Hs, var, z, T, _, _ = many_sensors
+    n = 16
+    q = subspace.reference_block_rows(n, 30, whitening.output_rank(Hs, var))
+    V = whitening.principal_outputs(Hs, var, n, q)
+    basis = subspace.row_basis(z, q)
+    seeds = np.array([11, 12, 13])
+    lw = np.ones(Hs.shape[0])
+    got = replicates.run_noise_replicates(basis, Hs, var, n, T, seeds, lw, 1, output_basis=V)
+    std = np.sqrt(var / 2.0)
+
+    def by_hand(b: int) -> np.ndarray:
+        g = np.random.default_rng(int(seeds[b])).standard_normal((2,) + Hs.shape)
+        return replicates.project_outputs(Hs + std * (g[0] + 1j * g[1]), V)
+
+    want = replicates._own_schur_replicates(by_hand, 3, V.shape[1], basis, n, T, lw, 1, None,
+                                            V)
+    for a, b in zip(got, want):
+        assert a.shapes.shape[0] == 30
+        np.testing.assert_array_equal(a.poles, b.poles)
+        np.testing.assert_array_equal(a.shapes, b.shapes)
+
+
+def test_the_pipeline_projects_and_says_so(many_sensors):
+    from automodal.pipeline import identify
+    from automodal.settings import Settings
+
+    *_, modes, data = many_sensors
+    res = identify(data, Settings(seed=1, n_bootstrap=20))
+    assert any("principal directions" in w for w in res.warnings)
+    found = sorted(m.frequency_hz for m in res.modes if m.physical)
+    true = np.sort(modes.frequency_hz)[:4]
+    assert len(found) == 4
+    np.testing.assert_allclose(found, true, rtol=1e-3)

@@ -270,3 +270,24 @@ def test_noise_alone_is_not_split():
     assert not orders.get("sub_bands") and orders["n0_rule"] != "sub-bands"
     assert orders["reference"] <= 24
     assert not any(m.physical for m in res.modes)
+
+
+def test_a_scan_cut_short_for_a_split_that_does_not_pay_is_run_again(monkeypatch):
+    """The scan stops early at a stage whose reference would be split; when the split is
+    then refused (:func:`sub_bands.split_pays`), the band is scanned again to the end, as
+    when the plan finds no cut."""
+    import automodal.pipeline as pipeline
+
+    monkeypatch.setattr(sub_bands, "WORK_LIMIT", 1e6)
+    calls = []
+    choose = pipeline._choose_orders
+
+    def counted(*args, **kwargs):
+        p, choice = choose(*args, **kwargs)
+        calls.append((args[3], choice.complete))
+        return p, choice
+
+    monkeypatch.setattr(pipeline, "_choose_orders", counted)
+    identify(_h1_of_noise_alone(1000, 35, 3, 8, seed=2), Settings(seed=1, n_bootstrap=10))
+    assert calls[0][0] is not None and not calls[0][1]  # cut short, for a split
+    assert len(calls) == 2 and calls[1][0] is None  # scanned again without the split

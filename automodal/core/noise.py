@@ -631,7 +631,7 @@ def estimate_noise(
 
     Order: records whose mean is the FRF (:func:`records_variance`); else coherence
     (:func:`coherence_variance`) with ``n_d`` from ``n_averages``, else the records' count,
-    else calibrated on the data-alone estimate (the median ratio of the two, said in
+    else calibrated on the local polynomial's residuals (:func:`_calibrated_averages`, said in
     ``assumptions``); else H1 ratio records (:func:`ratio_records_variance`, one input);
     else the data alone (:func:`data_variance`). Every variance is floored at
     :func:`precision_floor`.
@@ -754,7 +754,8 @@ def _calibrated_averages(frf: np.ndarray, coherence: np.ndarray) -> float:
     average of ``U`` (by the leverage) and ``X_k ~ chi2(2 dof) / (2 dof)``; so ``c`` is the
     mean of ``local_k / U~_k``, trimmed and corrected as in :func:`fit_floor_proportional`
     (resonances the polynomial does not follow only inflate ``local``). ``n_d`` solves
-    ``(n_d - 1) / (n_d - nu)^2 = c``.
+    ``(n_d - 1) / (n_d - nu)^2 = c``. Windows that hold a line of coherence 0 (no law) or
+    whose law is 0 throughout (coherence 1) are left out.
 
     Each line's law enters through its window's average, never alone: at lines where the
     realized force is weak in some direction (and in a band of noise alone, where H1
@@ -762,15 +763,21 @@ def _calibrated_averages(frf: np.ndarray, coherence: np.ndarray) -> float:
     numerator, as an earlier version took against the smooth data-alone model, was
     dominated by those lines: on a pure-noise band of a 35 x 3 H1 file (8 records) it gave
     ``n_d = 21.8`` for 8 and a variance 3.4 times too small; this gives 9.4, as on the
-    file's whole band (8.2).
+    file's whole band (8.4).
     """
     nu = frf.shape[2]
     # the law at n_d = nu + 1, where (n_d - 1) / (n_d - nu)^2 = nu, divided by nu
     unit = coherence_variance(frf, coherence, nu + 1.0) / nu
     local, dof, leverage = local_polynomial_variance(frf)
-    ratio = local / _window_average(unit, leverage)
-    ratio = ratio[np.isfinite(ratio) & (ratio >= 0)]
-    c = _trimmed_scale(ratio, dof)
+    # a line of coherence 0 has no law (its U is |H|^2 / eps): every window holding one
+    # is left out, or its huge U would send that window's ratios to 0 and the trimmed
+    # mean after them (a coherence of 0 on one line in 40: n_d = 1.8e18)
+    lawless = (np.asarray(coherence, dtype=float) <= np.finfo(float).eps) | ~np.isfinite(unit)
+    spoilt = _window_average(lawless.astype(float), leverage) > 0
+    average = _window_average(np.where(lawless, 0.0, unit), leverage)
+    usable = ~spoilt & (average > 0)
+    ratio = local[usable] / average[usable]
+    c = _trimmed_scale(ratio[np.isfinite(ratio)], dof)
     if not c > 0:
         return float(nu + 1)
     q = 1.0 / c  # = (n_d - nu)^2 / (n_d - 1)
@@ -787,7 +794,8 @@ def _trimmed_scale(
     """``c`` of ``ratio_k = c X_k``, ``X_k ~ chi2(2 dof) / (2 dof)``: the mean of the
     ratios at most the ``1 - trim_probability`` quantile of ``c X``, divided by
     ``E[X | X <= quantile]`` (the trimming of :func:`fit_floor_proportional`), iterated
-    from the median; 0 when no ratio is positive."""
+    from the median; 0 when there is no ratio or at least half of them are 0 (data the
+    polynomial fits exactly: the law's scale is then not seen)."""
     if ratio.size == 0:
         return 0.0
     cut, shrink = _trim_constants(dof, trim_probability)

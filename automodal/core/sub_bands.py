@@ -65,11 +65,13 @@ def split_pays(
     :func:`automodal.core.order.excessive_order` of it with ``factor`` (at most the
     band's), and its block rows fall with its reference in proportion (at least the
     default's). The sum of their replicates' work (:func:`replicate_work`) must be below
-    the whole band's. Where the band's reference is at its floor, ``n0 + 20`` for an ``n0``
-    the noise sets, and its block rows come from few directions above the noise rather
-    than from its order, the sub-bands' models are no smaller: splitting only repeats the
-    scans and the bootstraps for the same work (a file of H1 noise alone, 35 x 3 outputs
-    and inputs on 6000 lines: 4 sub-bands of 22 states on 15 block rows each, 13.9 s).
+    the whole band's (the overlaps of one resonance beyond each cut are not counted: a
+    slightly optimistic estimate). Where the band's reference is at its floor,
+    ``n0 + 20`` for an ``n0`` the noise sets, and its block rows come from few directions
+    above the noise rather than from its order, the sub-bands' models are no smaller:
+    splitting only repeats the scans and the bootstraps for the same work (a file of H1
+    noise alone, 35 x 3 outputs and inputs on 6000 lines: 4 sub-bands of 22 states on 15
+    block rows each, 13.9 s).
     """
     K = int(n_bands)
     if K < 2:

@@ -96,8 +96,8 @@ it a direction is not told from the noise."""
 
 def _lines_whitened(Hs: np.ndarray, variance: np.ndarray) -> tuple[np.ndarray, float]:
     """The FRF as ``ny x N nu``, each line divided by its own noise level (the root of its
-    mean variance over the entries), and the noise std left (1 up to the entries'
-    spread)."""
+    mean variance over the entries), and the noise std left (the root of the mean of the
+    variances over their lines' levels: 1 within rounding)."""
     N, ny, nu = Hs.shape
     level = np.mean(variance, axis=(1, 2))
     X = (Hs / np.sqrt(level)[:, None, None]).transpose(1, 0, 2).reshape(ny, N * nu)
@@ -142,7 +142,12 @@ def principal_outputs(
     values exceed the noise edge ``sigma / sqrt(2) (sqrt(2 N nu) + sqrt(ny))`` carry the
     modes; twice as many are kept (a weak mode lifts a direction only a little above the
     bulk), and at least ``ceil(1.2 n / (q - 1))``, so that ``(q - 1) r >= 1.2 n`` holds for
-    the ``r`` projected outputs as :func:`automodal.core.subspace.block_rows` asks.
+    the ``r`` projected outputs as :func:`automodal.core.subspace.block_rows` asks (None for
+    ``q < 2``).
+
+    The replicates' shapes then vary only within these directions: their spread
+    (``mode_shape_std``) leaves out the noise in the others, which the pipeline's warning
+    says.
 
     Parameters
     ----------
@@ -158,6 +163,8 @@ def principal_outputs(
     ndarray, shape (ny, r), real, orthonormal columns, or None
     """
     N, ny, nu = Hs.shape
+    if int(q) < 2:  # one block row: no shift invariance to keep the rank argument for
+        return None
     X, sigma = _lines_whitened(Hs, variance)
     G = X.real @ X.real.T + X.imag @ X.imag.T  # [Re X, Im X] times its transpose
     w, V = np.linalg.eigh(G)
