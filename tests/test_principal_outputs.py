@@ -125,3 +125,30 @@ def test_the_pipeline_projects_and_says_so(many_sensors):
     true = np.sort(modes.frequency_hz)[:4]
     assert len(found) == 4
     np.testing.assert_allclose(found, true, rtol=1e-3)
+
+
+def test_record_replicates_project_the_records(many_sensors):
+    """Repeated records whose mean is the FRF: the replicates average resampled records,
+    projected on the same directions (scaled first, then projected), and find the modes."""
+    from dataclasses import replace
+
+    from automodal.pipeline import identify
+    from automodal.settings import Settings
+
+    *_, modes, data = many_sensors
+    system = sim.damp(sim.grid(6, 5), "rayleigh", zeta=0.01)
+    clean, _ = sim.simulate_test(system, list(range(30)), [7], data.frequency,
+                                 "displacement", noise=0.0, seed=1)
+    rng = np.random.default_rng(5)
+    R = 6
+    H = clean.frf
+    sig = 0.01 * np.sqrt(np.mean(np.abs(H) ** 2, axis=0, keepdims=True))
+    noise_ = (rng.standard_normal((R, *H.shape))
+              + 1j * rng.standard_normal((R, *H.shape))) / np.sqrt(2)
+    records = H[None] + np.sqrt(R) * sig[None] * noise_
+    with_records = replace(data, frf=records.mean(axis=0), records=records)
+    res = identify(with_records, Settings(seed=1, n_bootstrap=20))
+    assert any("repeated records" in w for w in res.warnings)
+    assert any("principal directions" in w for w in res.warnings)
+    found = sorted(m.frequency_hz for m in res.modes if m.physical)
+    np.testing.assert_allclose(found, np.sort(modes.frequency_hz)[:4], rtol=1e-3)
