@@ -683,7 +683,7 @@ def _analyse(
     modes = summary.summarise_clusters(
         clusters.labels, clusters.rho, reps.poles, reps.shapes, reps.replicate,
         clusters.subspaces, ref.modes, p.scales, ref.contribution, s.n_bootstrap,
-        s.min_physicalness, snr2, params,
+        s.min_physicalness, snr2, params, outputs,
     )
     if _refined(p):
         tell(progress, "refinement")
@@ -856,8 +856,8 @@ def _replicates(
         warnings.append(
             f"the bootstrap replicates identified on {outputs.shape[1]} principal directions"
             f" of the {outputs.shape[0]} outputs (twice those above the noise): their shapes"
-            " vary only within those directions, so mode_shape_std leaves out the noise in"
-            " the others")
+            " vary only within those directions, and mode_shape_std adds the others' share"
+            " of the noise as the directions without structure among them show it")
     return replicates.stack_replicates(reps, p.H.shape[1], p.pole_map)
 
 

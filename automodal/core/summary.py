@@ -43,6 +43,29 @@ def shape_spread(rep: np.ndarray, members: np.ndarray) -> np.ndarray:
     return np.sqrt(np.mean(np.abs(aligned - aligned.mean(axis=1, keepdims=True)) ** 2, axis=1))
 
 
+def dropped_spread(members: np.ndarray, rep: np.ndarray, output_basis: np.ndarray) -> np.ndarray:
+    """Per-channel spread the member shapes would have in the output directions the
+    replicates left out (:func:`automodal.core.whitening.principal_outputs`).
+
+    The members (columns, scaled units, unit norm) vary only within the kept directions.
+    In the whitened outputs the noise is the same in every direction, and so is the shapes'
+    scatter it causes away from the modes' own directions: its variance per direction is
+    measured on the kept half that holds no structure (the columns from ``r // 2`` on:
+    ``r`` is at least twice the directions above the noise), aligned to ``rep`` as in
+    :func:`shape_spread`, and spread over each channel's share of the left-out directions
+    (``1 - sum_k V_ek^2``). Zeros for fewer than two members.
+    """
+    ny, r = output_basis.shape
+    quiet = output_basis[:, r // 2:]
+    if members.shape[1] < 2 or quiet.shape[1] == 0:
+        return np.zeros(ny)
+    alpha = (members.conj().T @ rep) / np.sum(np.abs(members) ** 2, axis=0)
+    c = quiet.T @ (members * alpha[None, :])
+    per_direction = float(np.mean(np.abs(c - c.mean(axis=1, keepdims=True)) ** 2))
+    left_out = np.clip(1.0 - np.sum(output_basis**2, axis=1), 0.0, None)
+    return np.sqrt(per_direction * left_out)
+
+
 def summarise_clusters(
     labels: np.ndarray,
     rho: np.ndarray,
@@ -57,6 +80,7 @@ def summarise_clusters(
     min_physicalness: float,
     snr2: np.ndarray | None = None,
     params: int = 0,
+    output_basis: np.ndarray | None = None,
 ) -> list[IdentifiedMode]:
     """Features, physicalness and statistics of every surviving cluster.
 
@@ -94,6 +118,10 @@ def summarise_clusters(
         fifth feature.
     params : int
         Real parameters per mode (with ``snr2``).
+    output_basis : ndarray, shape (ny, r), optional
+        The output directions the replicates identified on: the shapes' spread
+        (``mode_shape_std``) then adds what the left-out directions would have given
+        (:func:`dropped_spread`).
 
     Returns
     -------
@@ -148,6 +176,13 @@ def summarise_clusters(
             rep = ref_shapes[:, group[min(r, group.size - 1)]]
             rep_unit = unit_max_shapes(rep[:, None])[:, 0]
             members = unit_max_shapes(shapes_data[:, sel])
+            spread = shape_spread(rep_unit, members)
+            if output_basis is not None:
+                rep_s = normalise_shapes(ref.shapes[:, [group[min(r, group.size - 1)]]])[:, 0]
+                # a scaled unit-norm shape's change in the reported (unit-max) units
+                to_data = scales / (np.linalg.norm(scales * rep_s) * np.max(np.abs(rep)))
+                extra = dropped_spread(shapes_scaled[:, sel], rep_s, output_basis) * to_data
+                spread = np.sqrt(spread**2 + extra**2)
             modes.append(
                 IdentifiedMode(
                     id=0,
@@ -161,7 +196,7 @@ def summarise_clusters(
                     physical=bool(p >= min_physicalness and sel.size > 1),
                     n_members=int(sel.size),
                     mode_shape=rep_unit,
-                    mode_shape_std=shape_spread(rep_unit, members),
+                    mode_shape_std=spread,
                     mpc=float(mpc(rep_unit)[0]),
                     cluster=int(c),
                     cluster_dim=int(refsub.dims[c]),

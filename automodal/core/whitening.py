@@ -145,9 +145,8 @@ def principal_outputs(
     the ``r`` projected outputs as :func:`automodal.core.subspace.block_rows` asks (None for
     ``q < 2``).
 
-    The replicates' shapes then vary only within these directions: their spread
-    (``mode_shape_std``) leaves out the noise in the others, which the pipeline's warning
-    says.
+    The replicates' shapes then vary only within these directions; the reported spread
+    adds the others' share (:func:`automodal.core.summary.dropped_spread`).
 
     Parameters
     ----------
