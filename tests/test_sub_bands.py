@@ -291,3 +291,19 @@ def test_a_scan_cut_short_for_a_split_that_does_not_pay_is_run_again(monkeypatch
     identify(_h1_of_noise_alone(1000, 35, 3, 8, seed=2), Settings(seed=1, n_bootstrap=10))
     assert calls[0][0] is not None and not calls[0][1]  # cut short, for a split
     assert len(calls) == 2 and calls[1][0] is None  # scanned again without the split
+
+
+def test_a_noise_model_too_low_does_not_send_the_order_up():
+    """H1 of noise alone with a wrong ``n_averages`` attribute (40 for 8: the noise model
+    5 times too low). The scan fits nothing to that noise and the envelope path takes
+    over; its misfit floor kept falling to 108 states, split in four sub-bands on the
+    block rows of the outputs' few directions: 122 s with 20 replicates. The floor's order
+    is now kept to what those directions can hold (4 states each): 2 states, whole."""
+    from dataclasses import replace
+
+    data = _h1_of_noise_alone(1000, 35, 3, 8, seed=2)
+    data = replace(data, attributes={**data.attributes, "n_averages": 40.0})
+    res = identify(data, Settings(seed=1, n_bootstrap=20))
+    assert res.orders["weighting"] == "envelope"
+    assert res.orders["reference"] <= 24 and not res.orders.get("sub_bands")
+    assert not any(m.physical for m in res.modes)

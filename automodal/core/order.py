@@ -809,6 +809,12 @@ def select_orders(
         orders, misfit = scan(z, H, weights, n_scan, count_peaks(H), models=models,
                               split_above=split_above, stages=stages, jobs=jobs)
         n0 = order_at_floor(orders, misfit)
+        if rank is not None and rank < ny:
+            # the envelope path after a noise model the scan could not fit: the outputs'
+            # few directions above that noise raise the block rows (below) as 1.2 n / rank,
+            # so the floor's order is kept to what those directions can hold, as
+            # order_off_the_noise keeps the significance test's
+            n0 = min(n0, max(2, STATES_PER_DIRECTION * int(rank)))
     else:
         p = mode_parameters(ny, nu)
         tv = test_variance(H, variance)
