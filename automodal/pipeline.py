@@ -810,11 +810,9 @@ def _replicates(
         rw = bootstrap.record_weights(records.shape[0], s.n_bootstrap, rng)
         if p.factor is not None:  # in the models' form, as Hs
             records = records / p.factor[None, :, None, None]
-        records = records / p.scales[None, None, :, None]
-        if outputs is not None:
-            records = replicates.project_outputs(records, outputs)
         reps = replicates.run_record_replicates(
-            ref.basis, records, n, p.T, rw, p.line_weights, s.jobs, progress, outputs,
+            ref.basis, records / p.scales[None, None, :, None], n, p.T, rw, p.line_weights,
+            s.jobs, progress, outputs,
         )
         warnings.append(
             f"bootstrap over the {records.shape[0]} repeated records (each replicate averages"
@@ -837,9 +835,8 @@ def _replicates(
                             " not use (output-only data, or no noise model): frequency lines"
                             " resampled instead")
         weights = bootstrap.line_weights(p.H.shape[0], s.n_bootstrap, rng)
-        Hs = p.Hs if outputs is None else replicates.project_outputs(p.Hs, outputs)
         reps = replicates.run_replicates(
-            ref.basis, Hs, n, p.T, weights * p.line_weights[None, :], s.jobs, progress,
+            ref.basis, p.Hs, n, p.T, weights * p.line_weights[None, :], s.jobs, progress,
             outputs,
         )
         warnings.append(

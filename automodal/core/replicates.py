@@ -90,10 +90,14 @@ def run_replicates(
         Worker threads.
     progress : callable, optional
         Called with the number of replicates finished since the last call.
-    output_basis : ndarray, shape (ny_full, ny), optional
-        The output directions ``H`` was projected on; the shapes are returned in the full
-        outputs (:func:`automodal.core.bootstrap.replicates_from_schur`).
+    output_basis : ndarray, shape (ny, r), optional
+        Real orthonormal output directions the replicates identify on
+        (:func:`automodal.core.whitening.principal_outputs`): ``H`` is projected on them
+        (:func:`project_outputs`) and the shapes come back in every output
+        (:func:`automodal.core.bootstrap.replicates_from_schur`).
     """
+    if output_basis is not None:
+        H = project_outputs(H, output_basis)
     B = weights.shape[0]
     ny = H.shape[1]
     m = basis.q * ny
@@ -140,6 +144,9 @@ def run_record_replicates(
     basis, n, T, jobs, progress, output_basis
         As in :func:`run_replicates`.
     """
+    if output_basis is not None:
+        records = project_outputs(records, output_basis)
+
     def average(b: int) -> np.ndarray:
         return np.einsum("r,rkij->kij", weights[b] / weights[b].sum(), records)
 
@@ -203,9 +210,8 @@ def run_noise_replicates(
     Parameters
     ----------
     H_model : ndarray, shape (N, ny, nu)
-        The reference model's FRF at the analysed lines (channel-scaled), on every output
-        (with ``output_basis`` too: each replicate's noise is drawn on the outputs, then
-        projected).
+        The reference model's FRF at the analysed lines (channel-scaled); with
+        ``output_basis`` each replicate's noise is drawn on every output, then projected.
     variance : ndarray, shape (N, ny, nu)
         Noise variance in the same units.
     seeds : ndarray of int, shape (B,)

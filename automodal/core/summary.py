@@ -173,12 +173,13 @@ def summarise_clusters(
                 continue
             fr = np.abs(poles[sel]) / (2 * np.pi)
             zt = -poles[sel].real / np.abs(poles[sel])
-            rep = ref_shapes[:, group[min(r, group.size - 1)]]
+            g = int(group[min(r, group.size - 1)])  # the representative
+            rep = ref_shapes[:, g]
             rep_unit = unit_max_shapes(rep[:, None])[:, 0]
             members = unit_max_shapes(shapes_data[:, sel])
             spread = shape_spread(rep_unit, members)
             if output_basis is not None:
-                rep_s = normalise_shapes(ref.shapes[:, [group[min(r, group.size - 1)]]])[:, 0]
+                rep_s = normalise_shapes(ref.shapes[:, [g]])[:, 0]
                 # a scaled unit-norm shape's change in the reported (unit-max) units
                 to_data = scales / (np.linalg.norm(scales * rep_s) * np.max(np.abs(rep)))
                 extra = dropped_spread(shapes_scaled[:, sel], rep_s, output_basis) * to_data
@@ -201,7 +202,7 @@ def summarise_clusters(
                     cluster=int(c),
                     cluster_dim=int(refsub.dims[c]),
                     features=dict(zip(names, map(float, f))),
-                    reference_mode=int(group[min(r, group.size - 1)]),
+                    reference_mode=g,
                 )
             )
     return numbered(modes)
