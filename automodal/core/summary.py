@@ -18,7 +18,7 @@ from automodal.core import clustering, physicalness
 from automodal.core.matching import mode_numbers
 from automodal.core.modal import ModeSet, mpc, normalise_shapes, unit_max_shapes
 from automodal.core.pole_map import PoleMap
-from automodal.core.refine import PoleRefinement, duplicate_poles, refine_poles, residue_shapes
+from automodal.core.refine import PoleRefinement, pair_verdicts, refine_poles, residue_shapes
 from automodal.result import IdentifiedMode
 
 
@@ -287,7 +287,7 @@ information if held fixed, while a true close mode left out of the basis biases 
 refined pole by many standard deviations (a 6 x 1 velocity chain whose modes at 44.3 and
 45.7 Hz overlap: 10 standard deviations in frequency, 31 in damping). So the companions are
 refined beside it, and leave the model when the data do not need them
-(:func:`automodal.core.refine.duplicate_poles`)."""
+(:func:`automodal.core.refine.pair_verdicts`)."""
 
 
 def _fit_shape(m: IdentifiedMode, shape: np.ndarray) -> dict:
@@ -312,7 +312,7 @@ def _needed_companions(
     fixed: np.ndarray, jobs: int | None = 1,
 ) -> np.ndarray:
     """Which refined companions (``fit.poles[k:]``, after the ``k`` modes called physical)
-    the data need beside the pole nearest to each (:func:`duplicate_poles` at the refined
+    the data need beside the pole nearest to each (:func:`pair_verdicts` at the refined
     poles, the companions expendable, on ``jobs`` workers), with every other pole in the
     model."""
     n = fit.poles.size
@@ -322,10 +322,39 @@ def _needed_companions(
     if comp.size == 0:
         return out
     expendable = ok >= k
-    dup = duplicate_poles(omega, H, variance, fit.poles[ok],
-                          np.concatenate([fit.poles[~fit.refined], fixed]), expendable, jobs)
-    out[comp - k] = ~dup[expendable]
+    v = pair_verdicts(omega, H, variance, fit.poles[ok],
+                      np.concatenate([fit.poles[~fit.refined], fixed]), expendable, jobs)
+    # one that repeats a refined mode's resonance is held in that mode's residue
+    out[comp - k] = ~(v.duplicate | (v.repeats >= 0))[expendable]
     return out
+
+
+def _shared_poles(
+    omega: np.ndarray, H: np.ndarray, variance: np.ndarray, free: np.ndarray,
+    fixed: np.ndarray, repeats: np.ndarray, jobs: int | None,
+) -> tuple[PoleRefinement, np.ndarray]:
+    """The refinement again without the weaker poles of repeated pairs, and each free
+    pole's place in it.
+
+    ``repeats`` (``(k,)``, for the first ``k`` free poles, :attr:`PairVerdicts.repeats`):
+    the pole whose resonance each repeats, or -1. Two modes that share a pole are one pole
+    with a residue of rank two; two free poles there are not identified (their residues
+    may split the pair's in any way), and the weaker one wandered: a repeated pair of a
+    10 x 3 grid 0.005 Hz apart at 14.1 Hz came out at 14.106 and 14.695 Hz. Each weaker
+    pole's place is its partner's (followed to a pole that stayed)."""
+    k = repeats.size
+    gone = np.zeros(free.size, bool)
+    gone[:k] = repeats >= 0
+    fit = refine_poles(omega, H, variance, free[~gone], fixed, jobs=jobs)
+    at = np.cumsum(~gone) - 1
+    for j in np.flatnonzero(gone):
+        r = j
+        for _ in range(k):  # a chain of repeats ends at a pole that stayed
+            if not gone[r]:
+                break
+            r = int(repeats[r])
+        at[j] = at[r]
+    return fit, at
 
 
 def refine_physical_modes(
@@ -345,8 +374,11 @@ def refine_physical_modes(
     its companions (the reference model's oscillatory poles within :data:`NEAR_POLE`
     half-bandwidths) and with every other pole of the reference model fixed in the basis.
     A companion that the data do not need beside the mode leaves the model before the fit
-    (:func:`automodal.core.refine.duplicate_poles` at the starting poles); a physical mode
-    the data do not need beside another is a split resonance and is no longer physical.
+    (:func:`automodal.core.refine.pair_verdicts` at the starting poles); a physical mode
+    the data do not need beside another is a split resonance and is no longer physical,
+    unless it repeats the other's resonance (one pole fits both, but not with one mode's
+    rank-one residue): the two are then one pole of the refinement, refitted without the
+    weaker (:func:`_shared_poles`), and both physical with its statistics.
 
     A companion the data still need beside the refined poles (the same test at the refined
     poles, the companion giving way) is a mode of its own: the second of two near-coincident
@@ -435,8 +467,10 @@ def refine_physical_modes(
     needed = np.ones(free.size, bool)
     if companions.size:  # the companions the data do not need leave before the fit
         expendable = np.arange(free.size) >= k
-        needed = ~(duplicate_poles(omega, H, variance, free, fixed, expendable, jobs)
-                     & expendable)
+        # a companion that repeats a mode's resonance leaves too: the mode's residue
+        # stands for both
+        v = pair_verdicts(omega, H, variance, free, fixed, expendable, jobs)
+        needed = ~((v.duplicate | (v.repeats >= 0)) & expendable)
         free = free[needed]
     fit = refine_poles(omega, H, variance, free, fixed, jobs=jobs)
     kept = companions[needed[k:]]
@@ -444,10 +478,18 @@ def refine_physical_modes(
     # physical mode (the companions that stayed are in the model, fixed)
     refined = np.flatnonzero(fit.refined[:k])
     duplicate = np.zeros(k, bool)
-    duplicate[refined] = duplicate_poles(
+    repeats = np.full(k, -1)
+    v = pair_verdicts(
         omega, H, variance, fit.poles[refined],
         np.concatenate([fit.poles[np.setdiff1d(np.arange(free.size), refined)], fixed]),
         jobs=jobs)
+    duplicate[refined] = v.duplicate
+    repeats[refined[v.repeats >= 0]] = refined[v.repeats[v.repeats >= 0]]
+    at = np.arange(free.size)  # each free pole's place in the fit
+    if np.any(repeats >= 0):
+        fit, at = _shared_poles(omega, H, variance, free, fixed, repeats, jobs)
+        duplicate = duplicate[repeats < 0]  # in the places of the poles that stayed
+        k = duplicate.size
     # a companion the data still need beside the refined modes is a mode of its own (the
     # second of two near-coincident modes the clustering joined into one)
     promoted = (_needed_companions(omega, H, variance, fit, k, fixed, jobs) if min(H.shape[1:]) >= 2
@@ -458,7 +500,9 @@ def refine_physical_modes(
     f, f_std, z, z_std = fit.frequency_damping()
     ok = fit.refined
     shapes = residue_shapes(fit.residues, variance, fit.residue_variance, fit.entry_variance)
-    slot = {int(m): j for j, m in enumerate(chosen)}
+    # each mode's place in the fit (a repeated pair's weaker mode: its partner's)
+    slot = {int(m): int(at[j]) for j, m in enumerate(chosen)}
+    shared = {int(chosen[j]) for j in np.flatnonzero(repeats >= 0)}
     owners = Counter(m.reference_mode for m in modes)
     for c in np.flatnonzero(promoted):  # a companion's reference mode, one cluster's own
         ref_mode = np.flatnonzero(oscillatory == kept[c])
@@ -469,6 +513,17 @@ def refine_physical_modes(
         j = slot.get(m.reference_mode, -1)
         if j < 0 or not ok[j] or (j < k and not m.physical):
             out.append(held(m))
+            continue
+        if m.reference_mode in shared:
+            # the second mode of a repeated pair: the pole is its partner's, the shape
+            # its own (the partner's residue holds both modes' directions)
+            out.append(replace(
+                m, frequency_hz=float(f[j]), frequency_std_hz=float(f_std[j]),
+                frequency_ci95_hz=(float(f[j] - 1.96 * f_std[j]),
+                                   float(f[j] + 1.96 * f_std[j])),
+                damping_ratio=float(z[j]), damping_std=float(z_std[j]),
+                damping_ci95=(float(z[j] - 1.96 * z_std[j]), float(z[j] + 1.96 * z_std[j])),
+                estimator="ml"))
             continue
         if j >= k:  # a companion that stayed: physical on the likelihood ratio
             if _companion_vetoed(m) or not resolved(f[j], z[j], lines_hz, decay):
