@@ -185,6 +185,7 @@ def prepare(
     noise = None
     try:
         noise = _estimate_noise(data, freq, H)
+        warnings.extend(noise.conflicts)
     except ValueError as exc:  # too few lines for the local polynomial
         warnings.append(f"no noise model ({exc}): envelope line weights and RMS scales,"
                         " bootstrap intervals")

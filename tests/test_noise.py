@@ -174,6 +174,42 @@ def test_coherence_law_within_20_percent(n_in: int, n_rec: int) -> None:
     assert_shape_follows(est.variance, sig, H1)
 
 
+@pytest.mark.parametrize("n_in, stated, conflict", [
+    (1, 8, False), (2, 16, False), (1, 40, True), (2, 4, True), (2, 40, True)])
+def test_a_stated_number_of_averages_is_checked_against_the_data(
+        n_in: int, stated: int, conflict: bool) -> None:
+    """A file's number of averages is used as given, but one whose law's variance differs
+    from what the FRF's own scatter shows by more than ``AVERAGES_AGREEMENT`` (a std off by
+    20 %) is named in ``conflicts``, with the number the data imply."""
+    true = 8 if stated in (8, 40) else 16
+    H1, coh, _rec, _sig = h1_test(modal_frf(n_in=n_in), 0.05, true, seed=5 + stated)
+    est = noise.estimate_noise(H1, coherence=coh, n_averages=stated)
+    assert est.n_averages == stated
+    assert bool(est.conflicts) is conflict
+    if conflict:
+        implied = float(est.conflicts[0].split("(as ")[1].split()[0])
+        assert 0.8 * true <= implied <= 1.25 * true
+
+
+def test_a_wrong_number_of_averages_is_a_warning_of_the_run(tmp_path) -> None:
+    """The pipeline says so among the run's warnings."""
+    from dataclasses import replace
+
+    from automodal.frfdata import FRFData
+    from automodal.pipeline import prepare
+    from automodal.settings import Settings
+
+    H1, coh, _rec, _sig = h1_test(modal_frf(n_in=1), 0.05, 8, seed=3)
+    data = FRFData(frequency=np.linspace(1.0, 100.0, H1.shape[0]), frf=H1,
+                   quantity="displacement", coherence=coh)
+    warnings: list[str] = []
+    prepare(replace(data, attributes={"n_averages": 40}), Settings(), warnings)
+    assert any("number of averages, 40" in w for w in warnings)
+    warnings = []
+    prepare(replace(data, attributes={"n_averages": 8}), Settings(), warnings)
+    assert not any("number of averages" in w for w in warnings)
+
+
 def test_coherence_takes_averages_from_records() -> None:
     H1, coh, rec, sig = h1_test(modal_frf(n_in=1), 0.02, 16, seed=7)
     est = noise.estimate_noise(H1, coherence=coh, records=rec)

@@ -767,15 +767,16 @@ def test_the_resolution_test_judges_the_lines_as_measured():
     assert physical(window, measured, narrow) and not physical(None, measured, narrow)
 
 
-def _repeated_pair(n_inputs: int = 2, gap: float = 2e-4, seed: int = 11, noise: float = 0.01):
+def _repeated_pair(n_inputs: int = 2, gap: float = 2e-4, seed: int = 11, noise: float = 0.01,
+                   third: float = 11.0):
     """Two modes of one resonance (``gap`` of their frequency apart: 0.04 half-bandwidths
     at the default, a nearly square grid's repeated pair) with independent shapes, seen by
-    ``n_inputs`` inputs, a third mode beside them, ``noise`` (relative to the RMS); and the
+    ``n_inputs`` inputs, a third mode at ``third`` Hz, ``noise`` (relative to the RMS); and the
     two starting poles an over-sized model gives such a pair, half a half-bandwidth apart.
     At 20 % noise both poles refine and one pole fits the pair (at 1 % the data need two
     poles 0.002 Hz apart; exactly repeated, the second pole of the fit strays)."""
     rng = np.random.default_rng(seed)
-    w = 2 * np.pi * np.array([10.0, 10.0 * (1 + gap), 11.0])
+    w = 2 * np.pi * np.array([10.0, 10.0 * (1 + gap), third])
     lam = w * (-0.005 + 1j * np.sqrt(1 - 0.005**2))
     omega = 2 * np.pi * np.linspace(8, 12, 800)
     s = 1j * omega
@@ -820,6 +821,32 @@ def test_the_rank_one_excess_is_the_residue_beyond_its_first_direction():
                            (ny, 1)) == 0.0
 
 
+def test_the_rank_one_excess_is_the_weighted_fit_where_the_channels_noise_is_not_separable():
+    """Entry variances that are no output factor times an input factor (noise following
+    ``|H|``): the excess is the weighted rank-one fit's, not above it (the whitened SVD alone
+    gave ten times the exact minimum here)."""
+    from scipy.optimize import minimize
+
+    from automodal.core.refine import rank_one_excess
+
+    rng = np.random.default_rng(4)
+    entry_var = np.array([1.0, 100.0, 100.0, 1.0])
+    gram = np.eye(2)
+    for _ in range(5):
+        r = rng.normal(size=4) + 1j * rng.normal(size=4)  # whitened residues
+        got = rank_one_excess(np.array([r.real, r.imag]), gram, entry_var, (2, 2))
+        R = (r * np.sqrt(entry_var)).reshape(2, 2)
+        w = (1.0 / entry_var).reshape(2, 2)
+
+        def cost(x, R=R, w=w):
+            phi, psi = x[0:2] + 1j * x[2:4], x[4:6] + 1j * x[6:8]
+            return float(np.sum(w * np.abs(R - np.outer(phi, psi)) ** 2))
+
+        best = min(minimize(cost, rng.normal(size=8), method="BFGS").fun for _ in range(20))
+        assert got <= best * (1 + 1e-6) + 1e-12
+        assert got >= best * (1 - 1e-4)
+
+
 def test_a_repeated_pair_is_two_modes_of_one_pole():
     """Two poles on a resonance of two modes (two inputs, different shapes): one pole fits
     it, but not with one mode's residue, so the weaker repeats the other and is no
@@ -849,16 +876,21 @@ def test_a_repeated_pair_is_two_modes_of_one_pole():
     assert (v.repeats < 0).all()
 
 
-@pytest.mark.parametrize("n_inputs", [2, 1])
-def test_both_modes_of_a_repeated_pair_are_physical_at_the_shared_pole(n_inputs):
+@pytest.mark.parametrize("n_inputs, third, seed", [(2, 11.0, 11), (1, 11.0, 11),
+                                                    (2, 10.06, 24), (2, 10.04, 24)])
+def test_both_modes_of_a_repeated_pair_are_physical_at_the_shared_pole(n_inputs, third, seed):
     """Both modes of a repeated pair called physical stay physical with two inputs, at one
-    refined pole; with one input (a rank-one residue whatever the modes) the weaker is a
-    split resonance, as before."""
+    refined pole, also with a third physical mode within reach of the pair test (one
+    half-bandwidth away: the pole left in the model once absorbed its partner there); with
+    one input (a rank-one residue whatever the modes) the weaker is a split resonance, as
+    before."""
     from automodal.core.summary import refine_physical_modes
 
-    omega, H, variance, lam, start = _repeated_pair(n_inputs, noise=0.2)
+    omega, H, variance, lam, start = _repeated_pair(n_inputs, seed=seed, noise=0.2,
+                                                    third=third)
     states = np.concatenate([start, lam[2:], start.conj(), lam[2:].conj()])
-    modes = [_mode(0, True, 10.0), _mode(1, True, 10.08)]
+    modes = [_mode(0, True, 10.0), _mode(1, True, 10.08)] + (
+        [_mode(2, True, third)] if third < 10.5 else [])
     out = refine_physical_modes(modes, states, np.array([0, 1, 2]), omega, H, variance)
     assert all(m.estimator == "ml" for m in out)
     if n_inputs == 1:
@@ -866,6 +898,8 @@ def test_both_modes_of_a_repeated_pair_are_physical_at_the_shared_pole(n_inputs)
         return
     assert all(m.physical for m in out)
     assert out[0].frequency_hz == out[1].frequency_hz
+    if third < 10.5:
+        return
     # one pole for both: its interval holds the pair's middle (the two 0.002 Hz apart,
     # 0.04 half-bandwidths) and their damping
     lo, hi = out[0].frequency_ci95_hz

@@ -500,7 +500,8 @@ def _levenberg_marquardt(
     The fit ends once the cost is below ``enough``: a caller that only asks whether the
     cost can get that low (:func:`pair_verdicts`) has its answer, since accepted steps
     never raise the cost (the fit run to its end gives the same answer, but for a
-    comparison within the last bit of ``enough``)."""
+    comparison within the last bit of ``enough``; the residue's rank, judged after it, is
+    judged at the pole where it stopped)."""
     cost, state = fit(free)
     damping = 1e-3
     it = 0
@@ -1184,7 +1185,8 @@ def residue_whitening(
 
 
 def rank_one_excess(
-    C: np.ndarray, gram: np.ndarray, entry_var: np.ndarray, shape: tuple[int, int]
+    C: np.ndarray, gram: np.ndarray, entry_var: np.ndarray, shape: tuple[int, int],
+    iterations: int = 100,
 ) -> float:
     """How much a pole's whitened cost rises when its residues are made one mode's.
 
@@ -1194,11 +1196,11 @@ def rank_one_excess(
     :func:`_pair_columns`) with the matrix ``gram`` (those two columns' Gram matrix off the
     others), so the rise is ``min sum_e d_e^T gram d_e`` over the rank-one residues, ``d_e``
     the change of entry ``e``'s coefficients. Taken here as ``gram``'s smaller eigenvalue
-    times the squared singular values of the residue matrix beyond its first, the matrix
-    whitened by outputs and inputs (:func:`residue_whitening`, as :func:`residue_shapes`
-    judges a residue's rank): a lower bound where the entries' variances are an output
-    factor times an input factor, so that a pair stays one mode unless its residue's
-    second direction is clear.
+    ``mu`` times ``min sum_e |R_e - phi_o psi_i|^2 / c_e`` (``R_e`` the residue in the
+    data's units, ``c_e = entry_var[e]``), which is below the rise: the weighted rank-one
+    fit by alternating least squares, from the leading singular pair of the residue whitened
+    by outputs and inputs (:func:`residue_whitening`; the exact minimum where the entries'
+    variances are an output factor times an input factor).
 
     Parameters
     ----------
@@ -1208,6 +1210,9 @@ def rank_one_excess(
         Entry variances of the whitening (:func:`separable_weights`).
     shape : (ny, nu)
         The FRF's outputs and inputs, ``ny nu = E``.
+    iterations : int
+        Alternating steps at most (each lowers the sum; they stop when it changes by less
+        than 1e-10 of itself).
 
     Returns
     -------
@@ -1216,11 +1221,25 @@ def rank_one_excess(
     ny, nu = shape
     if min(ny, nu) < 2:
         return 0.0
-    whiten, _ = residue_whitening(entry_var, shape)
-    R = ((C[0] + 1j * C[1]) * np.sqrt(entry_var)).reshape(ny, nu) * whiten
+    var = np.asarray(entry_var, float)
+    R = ((C[0] + 1j * C[1]) * np.sqrt(var)).reshape(ny, nu)
+    w = (1.0 / var).reshape(ny, nu)
+    whiten, _ = residue_whitening(var, shape)
+    U, sv, Vh = np.linalg.svd(R * whiten)
+    phi = U[:, 0] * sv[0] / whiten[:, 0]
+    psi = Vh[0] * (whiten[0, 0] / whiten[0])  # whiten = a_o b_i: b_i undone here
+    tiny = np.finfo(float).tiny
+    cost = float(np.sum(w * np.abs(R - np.outer(phi, psi)) ** 2))
+    for _ in range(iterations):
+        phi = (w * R) @ psi.conj() / np.maximum(w @ np.abs(psi) ** 2, tiny)
+        psi = (w * R).T @ phi.conj() / np.maximum(w.T @ np.abs(phi) ** 2, tiny)
+        new = float(np.sum(w * np.abs(R - np.outer(phi, psi)) ** 2))
+        done = cost - new <= 1e-10 * new
+        cost = min(cost, new)
+        if done:
+            break
     mu = float(np.linalg.eigvalsh(0.5 * (gram + gram.T))[0])
-    sv = np.linalg.svd(R, compute_uv=False)
-    return max(mu, 0.0) * float(np.sum(sv[1:] ** 2))
+    return max(mu, 0.0) * cost
 
 
 @dataclass(frozen=True)
@@ -1231,7 +1250,9 @@ class PairVerdicts:
     ----------
     duplicate : ndarray of bool, shape (m,)
         The data do not need the pole beside a neighbour: one pole with one mode's residues
-        fits the pair (a split resonance, or an over-sized model's second pole there).
+        fits the pair (a split resonance, or an over-sized model's second pole there); where
+        the model misses the data about the pair by more than the noise, one pole fits it
+        (the residue's rank is not judged there).
     repeats : ndarray of int, shape (m,)
         For a pole whose pair one pole fits, but not with one mode's residues (a rank-one
         matrix; the residue there has a second direction the noise does not give): the
@@ -1377,19 +1398,28 @@ def pair_verdicts(
     work = len(pending) * MAX_ITERATIONS * 8.0 * n_rows * (fixed.size + 2 * m + n_entries)
     with freeing_map(jobs, len(pending), work) as (n_jobs, pmap):
         while pending:
-            pending = [(a, b) for a, b in pending if not (dup[a] or dup[b])]
-            batch, out = pending[:n_jobs], dup.copy()
+            # a pole that repeats another's resonance leaves the model as a duplicate does:
+            # its mode is in the other's residue (left in, the other pole absorbed it in a
+            # test against a third pole within reach, and the pair lost its second mode)
+            gone = dup | (repeats >= 0)
+            pending = [(a, b) for a, b in pending if not (gone[a] or gone[b])]
+            batch = pending[:n_jobs]
             pending = pending[n_jobs:]
-            tests = pmap(verdict, batch, [out] * len(batch))
+            tests = pmap(verdict, batch, [gone] * len(batch))
             for k, v in enumerate(tests):
+                if v == 0:
+                    continue
                 weak, strong = weaker(*batch[k])
-                if v == 2 and repeats[weak] < 0:
-                    repeats[weak] = strong
-                elif v == 1:
+                if v == 1:
                     dup[weak] = True
-                    repeats[weak] = -1
-                    pending = batch[k + 1:] + pending
-                    break
-    # a pole repeats only a resonance that stayed in the model
-    repeats[(repeats >= 0) & dup[np.maximum(repeats, 0)]] = -1
-    return PairVerdicts(dup, repeats)
+                else:
+                    repeats[weak] = strong
+                pending = batch[k + 1:] + pending
+                break
+    # a pole whose partner proved a duplicate is one too (the partner's resonance, which
+    # held its mode, is a third pole's single mode)
+    while True:
+        orphan = (repeats >= 0) & dup[np.maximum(repeats, 0)]
+        if not orphan.any():
+            return PairVerdicts(dup, repeats)
+        dup[orphan], repeats[orphan] = True, -1
