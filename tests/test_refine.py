@@ -876,24 +876,30 @@ def test_a_repeated_pair_is_two_modes_of_one_pole():
     assert (v.repeats < 0).all()
 
 
-@pytest.mark.parametrize("n_inputs, third, seed", [(2, 11.0, 11), (1, 11.0, 11),
-                                                    (2, 10.06, 24), (2, 10.04, 24)])
-def test_both_modes_of_a_repeated_pair_are_physical_at_the_shared_pole(n_inputs, third, seed):
-    """Both modes of a repeated pair called physical stay physical with two inputs, at one
-    refined pole, also with a third physical mode within reach of the pair test (one
-    half-bandwidth away: the pole left in the model once absorbed its partner there); with
-    one input (a rank-one residue whatever the modes) the weaker is a split resonance, as
-    before."""
+@pytest.mark.parametrize("n_inputs, third, seed, one_cluster", [
+    (2, 11.0, 11, True), (1, 11.0, 11, True), (2, 10.06, 24, True), (2, 10.04, 24, True),
+    (2, 11.0, 11, False)])
+def test_both_modes_of_a_repeated_pair_are_physical_at_the_shared_pole(
+        n_inputs, third, seed, one_cluster):
+    """Both modes of a repeated pair called physical, two ranks of one cluster, stay
+    physical with two inputs, at one refined pole, also with a third physical mode within
+    reach of the pair test (one half-bandwidth away: the pole left in the model once
+    absorbed its partner there); with one input (a rank-one residue whatever the modes), or
+    as two clusters of one rank each, the weaker is a split resonance, as before."""
+    from dataclasses import replace
+
     from automodal.core.summary import refine_physical_modes
 
     omega, H, variance, lam, start = _repeated_pair(n_inputs, seed=seed, noise=0.2,
                                                     third=third)
     states = np.concatenate([start, lam[2:], start.conj(), lam[2:].conj()])
-    modes = [_mode(0, True, 10.0), _mode(1, True, 10.08)] + (
-        [_mode(2, True, third)] if third < 10.5 else [])
+    pair = [_mode(0, True, 10.0), _mode(1, True, 10.08)]
+    if one_cluster:
+        pair = [replace(m, cluster=0, cluster_dim=2) for m in pair]
+    modes = pair + ([_mode(2, True, third)] if third < 10.5 else [])
     out = refine_physical_modes(modes, states, np.array([0, 1, 2]), omega, H, variance)
     assert all(m.estimator == "ml" for m in out)
-    if n_inputs == 1:
+    if n_inputs == 1 or not one_cluster:
         assert sum(m.physical for m in out) == 1
         return
     assert all(m.physical for m in out)
