@@ -1272,6 +1272,7 @@ def pair_verdicts(
     fixed: np.ndarray,
     expendable: np.ndarray | None = None,
     jobs: int | None = 1,
+    groups: np.ndarray | None = None,
 ) -> PairVerdicts:
     """Which of the (refined) ``poles`` the data do not need beside a neighbour, and which
     repeat a neighbour's resonance.
@@ -1298,8 +1299,8 @@ def pair_verdicts(
     0.004 Hz apart, half-bandwidths 0.3 to 0.7 Hz, two or three inputs) lost their second
     mode as a split resonance: 6 of the 18 clear modes (of 1018) missed on the seeds 977
     to 1013, of which this recovers 4 (the other two were found by a minority of the
-    replicates). The caller keeps a repeated verdict only between two ranks of one cluster
-    (:func:`automodal.core.summary.refine_physical_modes`).
+    replicates). A repeated verdict is given only within one of ``groups`` (the caller's
+    clusters, :func:`automodal.core.summary.refine_physical_modes`).
 
     Parameters
     ----------
@@ -1317,6 +1318,10 @@ def pair_verdicts(
     jobs : int or None
         Worker threads for the pairs' tests (:func:`automodal.core.parallel.worker_count`);
         the outcome does not depend on it.
+    groups : ndarray of int, shape (m,), optional
+        Two poles may repeat one resonance only within one group (the caller's clusters:
+        two modes of one pole are two ranks of one cluster); a pair of two groups that one
+        pole fits is a mode and a duplicate, whatever the residue's rank.
 
     Returns
     -------
@@ -1381,7 +1386,7 @@ def pair_verdicts(
                                              MAX_ITERATIONS, enough=enough)
         if not cost < enough:
             return 0
-        if rank_threshold is None:
+        if rank_threshold is None or (groups is not None and groups[a] != groups[b]):
             return 1
         if local[a] > fits[a] or local[b] > fits[b]:
             # the model misses the data there by more than the noise: a residue's second

@@ -479,25 +479,17 @@ def refine_physical_modes(
     refined = np.flatnonzero(fit.refined[:k])
     duplicate = np.zeros(k, bool)
     repeats = np.full(k, -1)
-    v = pair_verdicts(
-        omega, H, variance, fit.poles[refined],
-        np.concatenate([fit.poles[np.setdiff1d(np.arange(free.size), refined)], fixed]),
-        jobs=jobs)
-    duplicate[refined] = v.duplicate
-    repeats[refined[v.repeats >= 0]] = refined[v.repeats[v.repeats >= 0]]
     # two modes of one pole are two ranks of one cluster: the replicates saw a subspace of
     # two modes there. Two clusters of one rank each whose poles one pole fits are a mode
     # and a split of it whose residue took a neighbour's share (a 23 x 3 dense grid, fresh
     # seed 1049 f_17: a third mode beside the two true ones 0.38 half-bandwidths apart)
     cluster = {m.reference_mode: m.cluster for m in modes}
-    for j in np.flatnonzero(repeats >= 0):
-        if cluster.get(chosen[j]) != cluster.get(chosen[repeats[j]]):
-            duplicate[j], repeats[j] = True, -1
-    while True:  # and a mode whose partner is a duplicate is one too
-        orphan = (repeats >= 0) & duplicate[np.maximum(repeats, 0)]
-        if not orphan.any():
-            break
-        duplicate[orphan], repeats[orphan] = True, -1
+    v = pair_verdicts(
+        omega, H, variance, fit.poles[refined],
+        np.concatenate([fit.poles[np.setdiff1d(np.arange(free.size), refined)], fixed]),
+        jobs=jobs, groups=np.array([cluster.get(chosen[j], -1) for j in refined]))
+    duplicate[refined] = v.duplicate
+    repeats[refined[v.repeats >= 0]] = refined[v.repeats[v.repeats >= 0]]
     at = np.arange(free.size)  # each free pole's place in the fit
     if np.any(repeats >= 0):
         fit, at = _shared_poles(omega, H, variance, free, fixed, repeats, jobs)
