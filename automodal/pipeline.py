@@ -27,6 +27,7 @@ imported here too.
 from __future__ import annotations
 
 import time
+from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
@@ -496,6 +497,7 @@ def _identify_sub_bands(
         lines = merged.frf_fit[0] if merged.frf_fit is not None else data.frequency
         merged.warnings.extend(resolution_warnings(merged.modes, lines,
                                                    pole_map_of(data).shift))
+        merged.warnings.extend(shared_pole_warnings(merged.modes))
     merged.runtime_s = time.perf_counter() - t0
     return merged
 
@@ -618,6 +620,7 @@ def _identify(
     fit = _physical_fit(p, modes)
     if not part:
         warnings.extend(resolution_warnings(modes, p.frequency, p.pole_map.shift))
+        warnings.extend(shared_pole_warnings(modes))
     return Result(
         modes=modes,
         trashbox_members=int(np.sum(clusters.labels == TRASHBOX)),
@@ -932,3 +935,15 @@ def resolution_warnings(
                 " treat its damping as an estimate of the order of the resolution only"
             )
     return out
+
+
+def shared_pole_warnings(modes: list[IdentifiedMode]) -> list[str]:
+    """One warning per pole that several physical modes share (a repeated pair refined as
+    one pole, ``docs/method.md`` 6): their frequency, damping and intervals are the pole's,
+    which hold the pair's middle rather than each mode."""
+    poles = Counter((m.frequency_hz, m.damping_ratio) for m in modes
+                    if m.physical and m.estimator == "ml")
+    return [f"{count} physical modes at {f:.6g} Hz share one pole (a repeated pair: one"
+            " pole's residue holds two modes' shapes): their frequency, damping and"
+            " intervals are the pole's, which hold the pair's middle rather than each mode"
+            for (f, _), count in sorted(poles.items()) if count > 1]

@@ -912,3 +912,19 @@ def test_both_modes_of_a_repeated_pair_are_physical_at_the_shared_pole(
     assert lo <= float(np.mean(np.abs(lam[:2]))) / (2 * np.pi) <= hi
     lo, hi = out[0].damping_ci95
     assert lo <= 0.005 <= hi
+
+
+def test_modes_sharing_a_pole_are_named_in_a_warning():
+    """A repeated pair's two physical modes at one refined pole give one warning; modes of
+    their own poles, or not refined, give none."""
+    from dataclasses import replace
+
+    from automodal.pipeline import shared_pole_warnings
+
+    a = replace(_mode(0, True, 10.0), estimator="ml")
+    b = replace(_mode(1, True, 10.0), estimator="ml")
+    c = replace(_mode(2, True, 11.0), estimator="ml")
+    warnings = shared_pole_warnings([a, b, c])
+    assert len(warnings) == 1 and warnings[0].startswith("2 physical modes at 10 Hz")
+    assert shared_pole_warnings([a, c]) == []
+    assert shared_pole_warnings([a, replace(b, estimator="bootstrap")]) == []
