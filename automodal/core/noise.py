@@ -82,12 +82,17 @@ TRIM_PROBABILITY = 0.02
 """Upper tail probability of a local variance under the model above which a line is left out of
 the fit of the smooth model (resonances the local polynomial does not follow)."""
 
-AVERAGES_AGREEMENT = 1.44
+VARIANCE_ACCURACY = 1.44
+"""How far a noise variance estimate is trusted, as a factor either way: a standard deviation
+off by 20 %, the accuracy issue 13 asks of every source. A model that leaves the data less
+than this factor (and the chance of the residual's own scatter) beyond the noise fits them
+to the noise (:func:`automodal.core.refine.pair_verdicts`)."""
+
+AVERAGES_AGREEMENT = VARIANCE_ACCURACY
 """A stated number of averages disagrees with the data when the coherence law's variance with it
 and with the averages the data's own scatter implies (:func:`_calibrated_averages`) differ by
-more than this factor either way: a noise standard deviation off by 20 %, the accuracy issue 13
-asks of every source. On the 39 H1 files of the family seeds 977-1039 the data's own averages
-gave the law's scale within 0.92-1.06 of the true one."""
+more than this factor either way (:data:`VARIANCE_ACCURACY`). On the 39 H1 files of the family
+seeds 977-1039 the data's own averages gave the law's scale within 0.92-1.06 of the true one."""
 
 MEAN_TOLERANCE = 0.01
 """:func:`records_are_mean`: the FRF is the records' mean when its mean squared distance from it
