@@ -878,10 +878,11 @@ def test_a_repeated_pair_is_two_modes_of_one_pole():
 
 @pytest.mark.parametrize("understated", [1.0, 1.15, 1.3])
 def test_a_repeated_pair_is_found_under_a_noise_model_somewhat_low(understated):
-    """A noise variance 15-30 % below the truth (within the 20 % in standard deviation the
-    noise estimates are trusted to, :data:`automodal.core.noise.VARIANCE_ACCURACY`; the
-    family's H1 files sit 7-13 % above their coherence law) leaves a repeated pair two
-    modes of one pole; a model that misses the data by far more is not judged."""
+    """The truth's noise variance 15-30 % above the model's (within the 20 % in standard
+    deviation the noise estimates are trusted to, :data:`automodal.core.noise.
+    VARIANCE_ACCURACY`; a family H1 file's refined model left 7-13 % above the coherence
+    law) leaves a repeated pair two modes of one pole; a model that misses the data by far
+    more is not judged."""
     omega, H, variance, lam, start = _repeated_pair(noise=0.2)
     fit = refine_poles(omega, H, variance, start, lam[2:])
     v = pair_verdicts(omega, H, variance / understated, fit.poles, lam[2:])
@@ -942,9 +943,27 @@ def test_poles_brought_together_from_two_resonances_repeat_none():
     fit = refine_poles(omega, H, variance, start, lam[2:])
     v = pair_verdicts(omega, H, variance, fit.poles, lam[2:], starts=start)
     assert (v.repeats >= 0).sum() == 1
+    assert not v.carried.any()
     far = start + np.array([0.0, 3.0j * abs(start[0].real)])
     v = pair_verdicts(omega, H, variance, fit.poles, lam[2:], starts=far)
     assert v.duplicate.sum() == 1 and (v.repeats < 0).all()
+    assert (v.carried == v.duplicate).all()
+
+
+def test_the_fit_without_split_poles_places_each_pole():
+    """A split resonance leaves the fit (place -1), a repeated pair's weaker pole takes its
+    partner's place, and the poles after them (companions) keep their order."""
+    from automodal.core.summary import _without_split_poles
+
+    omega, H, variance, lam, start = _repeated_pair(noise=0.2)
+    free = np.array([start[0], start[1], lam[2]])
+    leaves, repeats = np.array([False, True]), np.array([-1, -1])
+    fit, at = _without_split_poles(omega, H, variance, free, np.zeros(0), leaves, repeats, 1)
+    assert at.tolist() == [0, -1, 1] and fit.poles.size == 2
+    np.testing.assert_allclose(fit.poles[1], lam[2], rtol=1e-3)
+    leaves, repeats = np.array([False, False]), np.array([-1, 0])
+    fit, at = _without_split_poles(omega, H, variance, free, np.zeros(0), leaves, repeats, 1)
+    assert at.tolist() == [0, 0, 1] and fit.poles.size == 2
 
 
 def test_modes_sharing_a_pole_are_named_in_a_warning():

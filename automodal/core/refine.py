@@ -1252,8 +1252,9 @@ class PairVerdicts:
     duplicate : ndarray of bool, shape (m,)
         The data do not need the pole beside a neighbour: one pole with one mode's residues
         fits the pair (a split resonance, or an over-sized model's second pole there); where
-        the model misses the data about the pair by more than the noise, one pole fits it
-        (the residue's rank is not judged there).
+        the model misses the data about the pair by more than the noise, or the two poles
+        started on two resonances (:attr:`carried`), one pole fits it (the residue's rank is
+        not judged there).
     repeats : ndarray of int, shape (m,)
         For a pole whose pair one pole fits, but not with one mode's residues (a rank-one
         matrix; the residue there has a second direction the noise does not give): the
@@ -1262,13 +1263,18 @@ class PairVerdicts:
     fits : ndarray of bool, shape (m,)
         Whether the model fits the data to the noise about each pole (its local dispersion
         within what the noise alone gives at the test's level, times the noise model's
-        accuracy :data:`automodal.core.noise.VARIANCE_ACCURACY`); True where no pair was
-        tested.
+        accuracy :data:`automodal.core.noise.VARIANCE_ACCURACY`), for every pole; all True
+        where :func:`pair_verdicts` tested nothing (no pair within reach, or too few lines).
+    carried : ndarray of bool, shape (m,)
+        The duplicates whose pair started on two resonances (``starts`` further apart than
+        :data:`DUPLICATE_HALF_BANDWIDTHS` half-bandwidths): the fit carried the pole from
+        its own resonance onto its partner's, and its start's mode is not judged.
     """
 
     duplicate: np.ndarray
     repeats: np.ndarray
     fits: np.ndarray
+    carried: np.ndarray
 
 
 def pair_verdicts(
@@ -1348,6 +1354,7 @@ def pair_verdicts(
     m = poles.size
     dup = np.zeros(m, bool)
     repeats = np.full(m, -1)
+    carried = np.zeros(m, bool)
     half = np.abs(poles.real)
     sep = np.abs(poles[:, None] - poles[None, :]) / np.maximum(half[:, None], half[None, :])
     start = poles if starts is None else np.asarray(starts, dtype=complex).ravel()
@@ -1360,10 +1367,10 @@ def pair_verdicts(
                    for e in np.flatnonzero(expendable)}
         pairs = list({p for p in nearest.values() if p is not None})
     if not pairs:
-        return PairVerdicts(dup, repeats, np.ones(m, bool))
+        return PairVerdicts(dup, repeats, np.ones(m, bool), np.zeros(m, bool))
     s, sw, Y, entry_var = _whitened(omega, H, variance)
     if Y.shape[0] < 2 * (2 * m + fixed.size + len(RESIDUAL_POWERS)):
-        return PairVerdicts(dup, repeats, np.ones(m, bool))
+        return PairVerdicts(dup, repeats, np.ones(m, bool), np.zeros(m, bool))
     wald, local, local_dof = _wald_and_local(s, sw, Y, poles, fixed)
     threshold = float(chdtri(2 * Y.shape[1] + 2, DUPLICATE_LEVEL))
     shape = np.shape(H)[1:3] if np.ndim(H) == 3 else (Y.shape[1], 1)
@@ -1377,7 +1384,7 @@ def pair_verdicts(
     # the refined model leaves 7-13 % more than the coherence law's variance all along the
     # band of a family H1 file, isolated modes included (seed 1097 f_04, 16 averages), and
     # the local scatter alone barred every pair there
-    fits = VARIANCE_ACCURACY * chdtri(2.0 * local_dof, DUPLICATE_LEVEL) / (2.0 * local_dof)
+    fit_limit = VARIANCE_ACCURACY * chdtri(2.0 * local_dof, DUPLICATE_LEVEL) / (2.0 * local_dof)
     base = _Problem.make(s, sw, Y, fixed)
     tested = base.off_fixed(_stack(sw[:, None] * _pair_columns(s, poles)))
     # each test's basis of the other tested poles: from one QR of all of them
@@ -1408,7 +1415,7 @@ def pair_verdicts(
             return 0
         if rank_threshold is None or not one_start[a, b]:
             return 1
-        if local[a] > fits[a] or local[b] > fits[b]:
+        if local[a] > fit_limit[a] or local[b] > fit_limit[b]:
             # the model misses the data there by more than the noise: a residue's second
             # direction may be any structure it misses (a dense grid's band whose local
             # dispersion was 200-1700 put five modes on one pole)
@@ -1440,6 +1447,7 @@ def pair_verdicts(
                 weak, strong = weaker(*batch[k])
                 if v == 1:
                     dup[weak] = True
+                    carried[weak] = not one_start[weak, strong]
                 else:
                     repeats[weak] = strong
                 pending = batch[k + 1:] + pending
@@ -1449,5 +1457,5 @@ def pair_verdicts(
     while True:
         orphan = (repeats >= 0) & dup[np.maximum(repeats, 0)]
         if not orphan.any():
-            return PairVerdicts(dup, repeats, local <= fits)
+            return PairVerdicts(dup, repeats, local <= fit_limit, dup & carried)
         dup[orphan], repeats[orphan] = True, -1

@@ -337,14 +337,14 @@ def _without_split_poles(
     pairs, and each free pole's place in it (-1 for a split resonance).
 
     ``duplicate`` and ``repeats`` (``(k,)``, for the first ``k`` free poles,
-    :class:`PairVerdicts`): the poles the data do not need that leave, and the pole whose
-    resonance each repeats, or -1. Two free poles on one resonance are not identified
-    (their residues may split it in any way), and one of them wanders: a repeated pair of
-    a 10 x 3 grid 0.005 Hz apart at 14.1 Hz came out at 14.106 and 14.695 Hz, and the mode
-    that stayed beside a split of a pair 0.0013 Hz apart at 31.098 Hz (a 23 x 3 grid, seed
-    1097 f_04) at 31.04 Hz with twice its damping. Two modes that share a pole are one pole with a
-    residue of rank two. Each weaker pole's place is its partner's (followed to a pole that
-    stayed)."""
+    :class:`PairVerdicts`): the split resonances that leave, and the pole whose resonance
+    each repeats, or -1. Two free poles on one
+    resonance are not identified (their residues may split it in any way), and one of them
+    wanders: a repeated pair of a 10 x 3 grid 0.005 Hz apart at 14.1 Hz came out at 14.106
+    and 14.695 Hz, and the mode that stayed beside a split of a pair 0.0013 Hz apart at
+    31.098 Hz (a 23 x 3 grid, seed 1097 f_04) at 31.04 Hz with twice its damping. Two modes
+    that share a pole are one pole with a residue of rank two. Each weaker pole's place is
+    its partner's (followed to a pole that stayed)."""
     k = repeats.size
     gone = np.zeros(free.size, bool)
     gone[:k] = duplicate | (repeats >= 0)
@@ -382,8 +382,11 @@ def refine_physical_modes(
     the data do not need beside another is a split resonance and is no longer physical (it
     keeps its bootstrap statistics), unless it repeats the other's resonance (one pole fits
     both, but not with one mode's rank-one residue): the two are then one pole of the
-    refinement, and both physical with its statistics. Either way the fit is made again
-    without the weaker pole (:func:`_without_split_poles`).
+    refinement, and both physical with its statistics. The fit is made again without the
+    weaker pole (:func:`_without_split_poles`) where the model fits the data to the noise
+    about it (:attr:`~automodal.core.refine.PairVerdicts.fits`; elsewhere a split stays in
+    the fit, not physical), and where the fit did not carry the split's pole from another
+    resonance (:attr:`~automodal.core.refine.PairVerdicts.carried`).
 
     A companion the data still need beside the refined poles (the same test at the refined
     poles, the companion giving way) is a mode of its own: the second of two near-coincident
@@ -495,9 +498,10 @@ def refine_physical_modes(
     # a split resonance leaves the fit where the model fits the data to the noise about
     # it; where the model misses them by far more, the split's pole holds some of what it
     # misses, and without it the others wandered off (the slow tests' 8 x 10 grid above
-    # 32 Hz: 6 more modes left unrefined there, 3 of them false)
+    # 32 Hz: 6 more modes left unrefined there, 3 of them false). A pole the fit carried
+    # from another resonance stays: its start's resonance would have no pole left
     leaves = np.zeros(k, bool)
-    leaves[refined] = v.duplicate & v.fits
+    leaves[refined] = v.duplicate & v.fits & ~v.carried
     if np.any(leaves | (repeats >= 0)):
         fit, at = _without_split_poles(omega, H, variance, free, fixed, leaves, repeats, jobs)
         k = int(np.sum(~leaves & (repeats < 0)))
@@ -521,7 +525,7 @@ def refine_physical_modes(
             slot[int(ref_mode[0])] = k + int(c)
     out = []
     for m in modes:
-        if m.reference_mode in split:  # the data need no second pole there
+        if m.physical and m.reference_mode in split:  # the data need no second pole there
             out.append(_not_physical(m))
             continue
         j = slot.get(m.reference_mode, -1)
