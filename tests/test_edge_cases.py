@@ -278,9 +278,16 @@ def test_mode_at_the_band_edge_is_warned_about_and_nothing_crashes(edge):
 
 
 def test_band_just_wider_than_the_modes_has_no_edge_warning():
+    """No resonance peak on an edge; the top mode (1 % damping, its half-power band
+    ``f +- 0.01 f``) 1 % inside the top edge is just within it."""
     data, true = chain_test(n_lines=800)
-    result = run(data, band_hz=(0.98 * true[0], 1.01 * true[3]))
+    result = run(data, band_hz=(0.98 * true[0], 1.011 * true[3]))
     assert not warned(result, "edge")
+    assert_modes(result, true)
+    # 0.5 % inside, the band cuts its half-power band: the mode is named, no peak is
+    result = run(data, band_hz=(0.98 * true[0], 1.005 * true[3]))
+    assert not warned(result, "on a resonance peak")
+    assert warned(result, "half-power band", "upper edge")
     assert_modes(result, true)
 
 

@@ -980,3 +980,18 @@ def test_modes_sharing_a_pole_are_named_in_a_warning():
     assert len(warnings) == 1 and warnings[0].startswith("2 physical modes at 10 Hz")
     assert shared_pole_warnings([a, c]) == []
     assert shared_pole_warnings([a, replace(b, estimator="bootstrap")]) == []
+
+
+def test_a_mode_whose_half_power_band_the_edge_cuts_is_named_in_a_warning():
+    """A physical mode within its half-bandwidth (``zeta f``, 0.05 Hz at 10 Hz here) of
+    either edge of the lines gets a warning naming that edge; one further in, or not
+    physical, gets none."""
+    from automodal.pipeline import edge_warnings
+
+    lines = np.linspace(9.98, 12.03, 400)
+    low, inner, high = _mode(0, True, 10.0), _mode(1, True, 11.0), _mode(2, True, 12.0)
+    warnings = edge_warnings([low, inner, high, _mode(3, False, 12.01)], lines)
+    assert len(warnings) == 2
+    assert "the mode at 10 Hz" in warnings[0] and "lower edge" in warnings[0]
+    assert "the mode at 12 Hz" in warnings[1] and "upper edge" in warnings[1]
+    assert edge_warnings([inner], lines) == []
