@@ -498,7 +498,7 @@ def _identify_sub_bands(
         merged.warnings.extend(resolution_warnings(merged.modes, lines,
                                                    pole_map_of(data).shift))
         merged.warnings.extend(shared_pole_warnings(merged.modes))
-        merged.warnings.extend(edge_warnings(merged.modes, lines))
+        merged.warnings.extend(edge_warnings(merged.modes, lines, pole_map_of(data).shift))
     merged.runtime_s = time.perf_counter() - t0
     return merged
 
@@ -622,7 +622,7 @@ def _identify(
     if not part:
         warnings.extend(resolution_warnings(modes, p.frequency, p.pole_map.shift))
         warnings.extend(shared_pole_warnings(modes))
-        warnings.extend(edge_warnings(modes, p.frequency))
+        warnings.extend(edge_warnings(modes, p.frequency, p.pole_map.shift))
     return Result(
         modes=modes,
         trashbox_members=int(np.sum(clusters.labels == TRASHBOX)),
@@ -939,28 +939,38 @@ def resolution_warnings(
     return out
 
 
-def edge_warnings(modes: list[IdentifiedMode], frequency: np.ndarray) -> list[str]:
-    """One warning per physical mode whose half-power band (``f +- zeta f``) reaches past
-    an edge of the analysed lines: the band cuts its resonance, and its estimate, its shape
-    above all, rests on part of it (on fresh family seeds 1129 and 1151, modes 0.015-0.07 Hz
-    inside an edge were reported with shapes of MAC 0.32-0.71 against the truth)."""
+def edge_warnings(
+    modes: list[IdentifiedMode], frequency: np.ndarray, window_decay: float = 0.0
+) -> list[str]:
+    """One warning per physical mode whose resonance in the data reaches past the first or
+    the last analysed line: the band cuts it, and its estimate, its shape above all, rests
+    on part of it (on the fresh family seeds 1151 f_01 and f_07, modes reported 0.022 and
+    0.026 Hz inside the last line, their half-power bands reaching past it, had shapes of
+    MAC 0.32 and 0.71 against the truth).
+
+    The resonance's half-width in the data is ``zeta f`` plus ``window_decay / (2 pi)``
+    (an exponential window's decay rate, 1/s, widens every peak by it; the reported damping
+    has it taken out). A mode reported wholly outside the lines is said to be so."""
     f = np.asarray(frequency, dtype=float)
     if f.size < 2:
         return []
     out = []
     for m in sorted((m for m in modes if m.physical), key=lambda m: m.frequency_hz):
-        half = m.damping_ratio * m.frequency_hz
-        if not (np.isfinite(m.frequency_hz) and np.isfinite(half)):
+        fm = m.frequency_hz
+        half = abs(m.damping_ratio) * fm + window_decay / (2.0 * np.pi)
+        if not (np.isfinite(fm) and np.isfinite(half)):
             continue
-        for name, cut in (("lower", m.frequency_hz - half < f[0]),
-                          ("upper", m.frequency_hz + half > f[-1])):
-            if cut:
-                edge = f[0] if name == "lower" else f[-1]
-                out.append(
-                    f"the mode at {m.frequency_hz:.4g} Hz: its half-power band"
-                    f" [{m.frequency_hz - half:.4g}, {m.frequency_hz + half:.4g}] Hz reaches"
-                    f" past the band's {name} edge ({edge:.4g} Hz), so its estimate rests on"
-                    " part of its resonance (its shape above all); widen the band")
+        cut = [name for name, past in (("first", fm - half < f[0]), ("last", fm + half > f[-1]))
+               if past]
+        if not cut:
+            continue
+        where = (f"lies outside the analysed lines [{f[0]:.4g}, {f[-1]:.4g}] Hz"
+                 if not f[0] <= fm <= f[-1] else
+                 " and ".join(f"the {name} analysed line ({f[0] if name == 'first' else f[-1]:.4g}"
+                              " Hz)" for name in cut).join(("reaches past ", "")))
+        out.append(f"the mode at {fm:.4g} Hz: its resonance [{fm - half:.4g}, {fm + half:.4g}] Hz"
+                   f" (half-power band) {where}, so its estimate rests on part of it (its shape"
+                   " above all); analyse a wider band, or measure beyond it")
     return out
 
 

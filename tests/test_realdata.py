@@ -81,10 +81,10 @@ def test_ladisk_uff_runs_end_to_end(tmp_path):
     physical = sorted(m["frequency_hz"] for m in report["modes"] if m["physical"])
     assert np.all(np.diff(physical) > 5.0), physical
     assert sum(abs(f - 959.0) < 5.0 for f in physical) == 1, physical
-    warnings = " ".join(report["warnings"])
     for m in report["modes"]:
         if m["physical"] and 2 * m["damping_ratio"] * m["frequency_hz"] < 1.47:
-            assert f"{m['frequency_hz']:.4g} Hz" in warnings and "1.47 line spacings" in warnings
+            assert any(f"{m['frequency_hz']:.4g} Hz" in w and "1.47 line spacings" in w
+                       for w in report["warnings"])
 
 
 WEIMAR_REFERENCE_HZ = np.array([1.2283, 1.4358, 2.1000, 4.0175, 4.7704, 6.6824, 7.6157, 9.6653,

@@ -984,7 +984,7 @@ def test_modes_sharing_a_pole_are_named_in_a_warning():
 
 def test_a_mode_whose_half_power_band_the_edge_cuts_is_named_in_a_warning():
     """A physical mode within its half-bandwidth (``zeta f``, 0.05 Hz at 10 Hz here) of
-    either edge of the lines gets a warning naming that edge; one further in, or not
+    the first or the last line gets a warning naming that line; one further in, or not
     physical, gets none."""
     from automodal.pipeline import edge_warnings
 
@@ -992,6 +992,16 @@ def test_a_mode_whose_half_power_band_the_edge_cuts_is_named_in_a_warning():
     low, inner, high = _mode(0, True, 10.0), _mode(1, True, 11.0), _mode(2, True, 12.0)
     warnings = edge_warnings([low, inner, high, _mode(3, False, 12.01)], lines)
     assert len(warnings) == 2
-    assert "the mode at 10 Hz" in warnings[0] and "lower edge" in warnings[0]
-    assert "the mode at 12 Hz" in warnings[1] and "upper edge" in warnings[1]
+    assert "the mode at 10 Hz" in warnings[0] and "first analysed line" in warnings[0]
+    assert "the mode at 12 Hz" in warnings[1] and "last analysed line" in warnings[1]
     assert edge_warnings([inner], lines) == []
+    # an exponential window widens the resonance in the data by its decay / (2 pi) Hz
+    assert edge_warnings([_mode(1, True, 11.95)], lines) == []
+    assert len(edge_warnings([_mode(1, True, 11.95)], lines, window_decay=2.0)) == 1
+    # one warning for both edges; a mode outside the lines is said to be
+    from dataclasses import replace
+    (both,) = edge_warnings([replace(inner, damping_ratio=0.2)], lines)
+    assert "first analysed line" in both and "last analysed line" in both
+    (outside,) = edge_warnings([_mode(4, True, 12.5)], lines)
+    assert "lies outside the analysed lines" in outside
+    assert edge_warnings([replace(inner, damping_ratio=float("nan"))], lines) == []
