@@ -495,10 +495,7 @@ def _identify_sub_bands(
     merged = merge_sub_bands(results, plan, s.to_dict(), warnings, 0.0)
     if not part:
         lines = merged.frf_fit[0] if merged.frf_fit is not None else data.frequency
-        merged.warnings.extend(resolution_warnings(merged.modes, lines,
-                                                   pole_map_of(data).shift))
-        merged.warnings.extend(shared_pole_warnings(merged.modes))
-        merged.warnings.extend(edge_warnings(merged.modes, lines, pole_map_of(data).shift))
+        merged.warnings.extend(mode_warnings(merged.modes, lines, pole_map_of(data).shift))
     merged.runtime_s = time.perf_counter() - t0
     return merged
 
@@ -620,9 +617,7 @@ def _identify(
     ref, reps, clusters, modes = a.ref, a.reps, a.clusters, a.modes
     fit = _physical_fit(p, modes)
     if not part:
-        warnings.extend(resolution_warnings(modes, p.frequency, p.pole_map.shift))
-        warnings.extend(shared_pole_warnings(modes))
-        warnings.extend(edge_warnings(modes, p.frequency, p.pole_map.shift))
+        warnings.extend(mode_warnings(modes, p.frequency, p.pole_map.shift))
     return Result(
         modes=modes,
         trashbox_members=int(np.sum(clusters.labels == TRASHBOX)),
@@ -914,6 +909,16 @@ def _physical_fit(p: Prepared, modes: list[IdentifiedMode]) -> synthesis.FixedPo
     return synthesis.fit_fixed_poles(p.omega, p.H, p.pole_map.to_model(lam), _power(p.data))
 
 
+def mode_warnings(
+    modes: list[IdentifiedMode], frequency: np.ndarray, window_decay: float = 0.0
+) -> list[str]:
+    """The run's warnings about its modes, at the analysed lines ``frequency`` (Hz):
+    damping the lines do not resolve, poles several modes share, resonances the band's
+    edges cut."""
+    return (resolution_warnings(modes, frequency, window_decay) + shared_pole_warnings(modes)
+            + edge_warnings(modes, frequency, window_decay))
+
+
 def resolution_warnings(
     modes: list[IdentifiedMode], frequency: np.ndarray, window_decay: float = 0.0
 ) -> list[str]:
@@ -960,14 +965,14 @@ def edge_warnings(
         half = abs(m.damping_ratio) * fm + window_decay / (2.0 * np.pi)
         if not (np.isfinite(fm) and np.isfinite(half)):
             continue
-        cut = [name for name, past in (("first", fm - half < f[0]), ("last", fm + half > f[-1]))
-               if past]
+        cut = [f"the {name} analysed line ({edge:.4g} Hz)" for name, edge, past in (
+            ("first", f[0], fm - half < f[0]), ("last", f[-1], fm + half > f[-1])) if past]
         if not cut:
             continue
-        where = (f"lies outside the analysed lines [{f[0]:.4g}, {f[-1]:.4g}] Hz"
-                 if not f[0] <= fm <= f[-1] else
-                 " and ".join(f"the {name} analysed line ({f[0] if name == 'first' else f[-1]:.4g}"
-                              " Hz)" for name in cut).join(("reaches past ", "")))
+        if f[0] <= fm <= f[-1]:
+            where = "reaches past " + " and ".join(cut)
+        else:
+            where = f"lies outside the analysed lines [{f[0]:.4g}, {f[-1]:.4g}] Hz"
         out.append(f"the mode at {fm:.4g} Hz: its resonance [{fm - half:.4g}, {fm + half:.4g}] Hz"
                    f" (half-power band) {where}, so its estimate rests on part of it (its shape"
                    " above all); analyse a wider band, or measure beyond it")

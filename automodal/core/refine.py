@@ -1276,6 +1276,11 @@ class PairVerdicts:
     fits: np.ndarray
     carried: np.ndarray
 
+    @classmethod
+    def untested(cls, m: int) -> PairVerdicts:
+        """The verdicts of ``m`` poles of which no pair was tested."""
+        return cls(np.zeros(m, bool), np.full(m, -1), np.ones(m, bool), np.zeros(m, bool))
+
 
 def pair_verdicts(
     omega: np.ndarray,
@@ -1352,9 +1357,6 @@ def pair_verdicts(
     poles = np.asarray(poles, dtype=complex).ravel()
     fixed = np.asarray(fixed, dtype=complex).ravel()
     m = poles.size
-    dup = np.zeros(m, bool)
-    repeats = np.full(m, -1)
-    carried = np.zeros(m, bool)
     half = np.abs(poles.real)
     sep = np.abs(poles[:, None] - poles[None, :]) / np.maximum(half[:, None], half[None, :])
     start = poles if starts is None else np.asarray(starts, dtype=complex).ravel()
@@ -1367,10 +1369,13 @@ def pair_verdicts(
                    for e in np.flatnonzero(expendable)}
         pairs = list({p for p in nearest.values() if p is not None})
     if not pairs:
-        return PairVerdicts(dup, repeats, np.ones(m, bool), np.zeros(m, bool))
+        return PairVerdicts.untested(m)
     s, sw, Y, entry_var = _whitened(omega, H, variance)
     if Y.shape[0] < 2 * (2 * m + fixed.size + len(RESIDUAL_POWERS)):
-        return PairVerdicts(dup, repeats, np.ones(m, bool), np.zeros(m, bool))
+        return PairVerdicts.untested(m)
+    dup = np.zeros(m, bool)
+    repeats = np.full(m, -1)
+    carried = np.zeros(m, bool)  # duplicates only
     wald, local, local_dof = _wald_and_local(s, sw, Y, poles, fixed)
     threshold = float(chdtri(2 * Y.shape[1] + 2, DUPLICATE_LEVEL))
     shape = np.shape(H)[1:3] if np.ndim(H) == 3 else (Y.shape[1], 1)
@@ -1457,5 +1462,5 @@ def pair_verdicts(
     while True:
         orphan = (repeats >= 0) & dup[np.maximum(repeats, 0)]
         if not orphan.any():
-            return PairVerdicts(dup, repeats, local <= fit_limit, dup & carried)
+            return PairVerdicts(dup, repeats, local <= fit_limit, carried)
         dup[orphan], repeats[orphan] = True, -1

@@ -331,12 +331,12 @@ def _needed_companions(
 
 def _without_split_poles(
     omega: np.ndarray, H: np.ndarray, variance: np.ndarray, free: np.ndarray,
-    fixed: np.ndarray, duplicate: np.ndarray, repeats: np.ndarray, jobs: int | None,
+    fixed: np.ndarray, leaves: np.ndarray, repeats: np.ndarray, jobs: int | None,
 ) -> tuple[PoleRefinement, np.ndarray]:
     """The refinement again without the split resonances and the weaker poles of repeated
     pairs, and each free pole's place in it (-1 for a split resonance).
 
-    ``duplicate`` and ``repeats`` (``(k,)``, for the first ``k`` free poles,
+    ``leaves`` and ``repeats`` (``(k,)``, for the first ``k`` free poles,
     :class:`PairVerdicts`): the split resonances that leave, and the pole whose resonance
     each repeats, or -1. Two free poles on one
     resonance are not identified (their residues may split it in any way), and one of them
@@ -347,10 +347,10 @@ def _without_split_poles(
     its partner's (followed to a pole that stayed)."""
     k = repeats.size
     gone = np.zeros(free.size, bool)
-    gone[:k] = duplicate | (repeats >= 0)
+    gone[:k] = leaves | (repeats >= 0)
     fit = refine_poles(omega, H, variance, free[~gone], fixed, jobs=jobs)
     at = np.cumsum(~gone) - 1
-    at[:k][duplicate] = -1
+    at[:k][leaves] = -1
     for j in np.flatnonzero(repeats >= 0):
         r = j
         for _ in range(k):  # a chain of repeats ends at a pole that stayed
@@ -485,16 +485,14 @@ def refine_physical_modes(
     # a physical mode is a split resonance when the data do not need it beside another
     # physical mode (the companions that stayed are in the model, fixed)
     refined = np.flatnonzero(fit.refined[:k])
-    duplicate = np.zeros(k, bool)
     repeats = np.full(k, -1)
     v = pair_verdicts(
         omega, H, variance, fit.poles[refined],
         np.concatenate([fit.poles[np.setdiff1d(np.arange(free.size), refined)], fixed]),
         jobs=jobs, starts=free[refined])
-    duplicate[refined] = v.duplicate
     repeats[refined[v.repeats >= 0]] = refined[v.repeats[v.repeats >= 0]]
     at = np.arange(free.size)  # each free pole's place in the fit
-    split = {int(chosen[j]) for j in np.flatnonzero(duplicate)}
+    split = {int(chosen[j]) for j in refined[v.duplicate]}
     # a split resonance leaves the fit where the model fits the data to the noise about
     # it; where the model misses them by far more, the split's pole holds some of what it
     # misses, and without it the others wandered off (the slow tests' 8 x 10 grid above
@@ -532,16 +530,16 @@ def refine_physical_modes(
         if j < 0 or not ok[j] or (j < k and not m.physical):
             out.append(held(m))
             continue
+        refined_stats = {
+            "frequency_hz": float(f[j]), "frequency_std_hz": float(f_std[j]),
+            "frequency_ci95_hz": (float(f[j] - 1.96 * f_std[j]), float(f[j] + 1.96 * f_std[j])),
+            "damping_ratio": float(z[j]), "damping_std": float(z_std[j]),
+            "damping_ci95": (float(z[j] - 1.96 * z_std[j]), float(z[j] + 1.96 * z_std[j])),
+            "estimator": "ml"}
         if m.reference_mode in shared:
             # the second mode of a repeated pair: the pole is its partner's, the shape
             # its own (the partner's residue holds both modes' directions)
-            out.append(replace(
-                m, frequency_hz=float(f[j]), frequency_std_hz=float(f_std[j]),
-                frequency_ci95_hz=(float(f[j] - 1.96 * f_std[j]),
-                                   float(f[j] + 1.96 * f_std[j])),
-                damping_ratio=float(z[j]), damping_std=float(z_std[j]),
-                damping_ci95=(float(z[j] - 1.96 * z_std[j]), float(z[j] + 1.96 * z_std[j])),
-                estimator="ml"))
+            out.append(replace(m, **refined_stats))
             continue
         if j >= k:  # a companion that stayed: physical on the likelihood ratio
             if _companion_vetoed(m) or not resolved(f[j], z[j], lines_hz, decay):
@@ -550,13 +548,7 @@ def refine_physical_modes(
                 out.append(m)
                 continue
             m = replace(m, physical=True)
-        out.append(replace(
-            m, frequency_hz=float(f[j]), frequency_std_hz=float(f_std[j]),
-            frequency_ci95_hz=(float(f[j] - 1.96 * f_std[j]), float(f[j] + 1.96 * f_std[j])),
-            damping_ratio=float(z[j]), damping_std=float(z_std[j]),
-            damping_ci95=(float(z[j] - 1.96 * z_std[j]), float(z[j] + 1.96 * z_std[j])),
-            **_fit_shape(m, shapes[:, j]), estimator="ml",
-        ))
+        out.append(replace(m, **refined_stats, **_fit_shape(m, shapes[:, j])))
     return finished(out)
 
 
