@@ -57,6 +57,60 @@ def test_noise_free_exact_start_is_left_unchanged_with_fixed_poles():
     np.testing.assert_allclose(fit.poles, poles[:2], rtol=1e-9)
 
 
+def test_a_fit_begun_elsewhere_judges_reach_from_its_starts():
+    """``initial`` moves where the iterations begin, not the starts: noise-free data are
+    fitted exactly from either, a pole ``held`` stays at its start unrefined, and a
+    mismatched length is refused."""
+    omega, H, poles, _ = _chain()
+    start = poles * (1 + 0.003 * np.array([1, -1, 1, -1]))
+    variance = np.full(H.shape, 1e-8)
+    fit = refine_poles(omega, H, variance, start, np.zeros(0), initial=poles * (1 + 1e-4))
+    assert fit.refined.all()
+    np.testing.assert_allclose(fit.poles, poles, rtol=1e-9)
+    held = np.array([False, False, True, False])
+    fit = refine_poles(omega, H, variance, start, np.zeros(0), held=held)
+    assert fit.refined.tolist() == [True, True, False, True]
+    assert fit.poles[2] == start[2] and np.isnan(fit.covariance[2]).all()
+    fit = refine_poles(omega, H, variance, start, np.zeros(0), held=np.ones(4, bool))
+    assert not fit.refined.any() and np.array_equal(fit.poles, start)
+    # an initial point beyond a pole's reach from its start: that pole is not refined
+    far = poles.copy()
+    far[1] = start[1] + 20j * abs(start[1].real)
+    fit = refine_poles(omega, H, variance, start, np.zeros(0), initial=far)
+    assert not fit.refined[1]
+    with pytest.raises(ValueError, match="one entry per free pole"):
+        refine_poles(omega, H, variance, start, np.zeros(0), initial=start[:3])
+
+
+def test_a_confined_fit_refuses_steps_out_of_its_region():
+    """``inside`` keeps Levenberg-Marquardt in a region: on a cost whose minimum lies
+    outside, every accepted point is inside and the cost still falls; without it the fit
+    goes to the minimum."""
+    from automodal.core.refine import _levenberg_marquardt
+
+    target = np.array([-1.0 + 10.0j])
+
+    def fit(p):
+        return float(np.sum(np.abs(p - target) ** 2)), None
+
+    def normal(p, _):
+        d = p - target
+        return 2.0 * np.eye(2), 2.0 * np.array([d[0].real, d[0].imag])
+
+    start = np.array([-1.0 + 1.0j])
+    free, _, cost = _levenberg_marquardt(fit, normal, start, 10)
+    np.testing.assert_allclose(free, target, atol=1e-6)
+    seen = []
+
+    def inside(p):
+        seen.append(p[0])
+        return abs(p[0] - start[0]) <= 3.0
+
+    free, _, cost = _levenberg_marquardt(fit, normal, start, 10, inside=inside)
+    assert abs(free[0] - start[0]) <= 3.0 and cost < fit(start)[0]
+    assert any(abs(p - start[0]) > 3.0 for p in seen)  # a step was refused
+
+
 def test_a_start_far_from_any_resonance_is_not_refined():
     omega, H, poles, _ = _chain()
     lonely = np.array([0.5 * (poles[0] + poles[1]).real + 0.5j * (poles[0] + poles[1]).imag])
@@ -135,8 +189,8 @@ def test_the_duplicate_test_stops_once_its_answer_is_known(monkeypatch):
     stopping = [duplicate_poles(omega, H, variance, free, fixed) for free, fixed in cases]
     whole = refine._levenberg_marquardt
     monkeypatch.setattr(refine, "_levenberg_marquardt",
-                        lambda fit, normal, free, n, strayed=None, enough=-np.inf:
-                        whole(fit, normal, free, n, strayed))
+                        lambda fit, normal, free, n, strayed=None, enough=-np.inf,
+                        inside=None: whole(fit, normal, free, n, strayed, inside=inside))
     to_the_end = [duplicate_poles(omega, H, variance, free, fixed) for free, fixed in cases]
     assert [d.tolist() for d in stopping] == [d.tolist() for d in to_the_end]
     assert stopping[0].sum() == 1 and not stopping[1].any()
@@ -961,6 +1015,12 @@ def test_the_fit_without_split_poles_places_each_pole():
     fit, at = _without_split_poles(omega, H, variance, free, np.zeros(0), leaves, repeats, 1)
     assert at.tolist() == [0, -1, 1] and fit.poles.size == 2
     np.testing.assert_allclose(fit.poles[1], lam[2], rtol=1e-3)
+    # begun at the fit of all three poles, it ends where a fit from the starts does
+    cold = fit
+    warm, at = _without_split_poles(omega, H, variance, free, np.zeros(0), leaves, repeats, 1,
+                                    refine_poles(omega, H, variance, free, np.zeros(0)))
+    assert at.tolist() == [0, -1, 1] and warm.refined.all()
+    np.testing.assert_allclose(warm.poles, cold.poles, rtol=1e-7)
     leaves, repeats = np.array([False, False]), np.array([-1, 0])
     fit, at = _without_split_poles(omega, H, variance, free, np.zeros(0), leaves, repeats, 1)
     assert at.tolist() == [0, 0, 1] and fit.poles.size == 2

@@ -332,6 +332,7 @@ def _needed_companions(
 def _without_split_poles(
     omega: np.ndarray, H: np.ndarray, variance: np.ndarray, free: np.ndarray,
     fixed: np.ndarray, leaves: np.ndarray, repeats: np.ndarray, jobs: int | None,
+    previous: PoleRefinement | None = None,
 ) -> tuple[PoleRefinement, np.ndarray]:
     """The refinement again without the split resonances and the weaker poles of repeated
     pairs, and each free pole's place in it (-1 for a split resonance).
@@ -344,11 +345,19 @@ def _without_split_poles(
     and 14.695 Hz, and the mode that stayed beside a split of a pair 0.0013 Hz apart at
     31.098 Hz (a 23 x 3 grid, seed 1097 f_04) at 31.04 Hz with twice its damping. Two modes
     that share a pole are one pole with a residue of rank two. Each weaker pole's place is
-    its partner's (followed to a pole that stayed)."""
+    its partner's (followed to a pole that stayed).
+
+    ``previous``, the fit of all of ``free``, is where the fit begins (the poles that stay
+    move little when a split leaves), with the poles it did not refine held; reach and
+    damping change are still judged from ``free``."""
     k = repeats.size
     gone = np.zeros(free.size, bool)
     gone[:k] = leaves | (repeats >= 0)
-    fit = refine_poles(omega, H, variance, free[~gone], fixed, jobs=jobs)
+    initial = held = None
+    if previous is not None:
+        initial, held = previous.poles[~gone], ~previous.refined[~gone]
+    fit = refine_poles(omega, H, variance, free[~gone], fixed, jobs=jobs, initial=initial,
+                       held=held)
     at = np.cumsum(~gone) - 1
     at[:k][leaves] = -1
     for j in np.flatnonzero(repeats >= 0):
@@ -501,7 +510,8 @@ def refine_physical_modes(
     leaves = np.zeros(k, bool)
     leaves[refined] = v.duplicate & v.fits & ~v.carried
     if np.any(leaves | (repeats >= 0)):
-        fit, at = _without_split_poles(omega, H, variance, free, fixed, leaves, repeats, jobs)
+        fit, at = _without_split_poles(omega, H, variance, free, fixed, leaves, repeats, jobs,
+                                       fit)
         k = int(np.sum(~leaves & (repeats < 0)))
     # a companion the data still need beside the refined modes is a mode of its own (the
     # second of two near-coincident modes the clustering joined into one)
