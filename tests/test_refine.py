@@ -111,6 +111,30 @@ def test_a_confined_fit_refuses_steps_out_of_its_region():
     assert any(abs(p - start[0]) > 3.0 for p in seen)  # a step was refused
 
 
+def test_the_pair_test_keeps_the_lone_pole_on_the_pair_s_resonance(monkeypatch):
+    """Each pair test's lone fit is confined: stable, within three half-bandwidths of the
+    pair's wider pole from the stronger pole."""
+    import automodal.core.refine as refine
+
+    omega, H, variance, poles = _noisy_chain()
+    twin = poles[1] + 0.5j * abs(poles[1].real)
+    regions = []
+    whole = refine._levenberg_marquardt
+
+    def recording(fit, normal, free, n, strayed=None, enough=-np.inf, inside=None):
+        regions.append((free.copy(), inside))
+        return whole(fit, normal, free, n, strayed, enough, inside)
+
+    monkeypatch.setattr(refine, "_levenberg_marquardt", recording)
+    pair_verdicts(omega, H, variance, np.array([poles[1], twin]), poles[[0, 2, 3]])
+    assert regions
+    for start, inside in regions:
+        half = max(abs(poles[1].real), abs(twin.real))
+        assert inside(start)
+        assert inside(start + 2.9j * half) and not inside(start + 3.1j * half)
+        assert not inside(np.array([abs(start[0].real) + 1j * start[0].imag]))
+
+
 def test_a_start_far_from_any_resonance_is_not_refined():
     omega, H, poles, _ = _chain()
     lonely = np.array([0.5 * (poles[0] + poles[1]).real + 0.5j * (poles[0] + poles[1]).imag])
@@ -1015,12 +1039,23 @@ def test_the_fit_without_split_poles_places_each_pole():
     fit, at = _without_split_poles(omega, H, variance, free, np.zeros(0), leaves, repeats, 1)
     assert at.tolist() == [0, -1, 1] and fit.poles.size == 2
     np.testing.assert_allclose(fit.poles[1], lam[2], rtol=1e-3)
-    # begun at the fit of all three poles, it ends where a fit from the starts does
-    cold = fit
-    warm, at = _without_split_poles(omega, H, variance, free, np.zeros(0), leaves, repeats, 1,
-                                    refine_poles(omega, H, variance, free, np.zeros(0)))
-    assert at.tolist() == [0, -1, 1] and warm.refined.all()
-    np.testing.assert_allclose(warm.poles, cold.poles, rtol=1e-7)
+    # begun at the fit of all three poles, it ends where a fit from the starts does; a
+    # pole that fit held (a start between resonances, out of reach) is held from the start
+    with_lonely = np.append(free, 0.5 * (lam[0] + lam[2]))
+    first = refine_poles(omega, H, variance, with_lonely, np.zeros(0))
+    assert first.held[3]
+    cold, at = _without_split_poles(omega, H, variance, with_lonely, np.zeros(0), leaves,
+                                    repeats, 1)
+    warm, at = _without_split_poles(omega, H, variance, with_lonely, np.zeros(0), leaves,
+                                    repeats, 1, first)
+    assert at.tolist() == [0, -1, 1, 2]
+    assert warm.held.tolist() == first.held[[0, 2, 3]].tolist() == [False, False, True]
+    assert warm.refined.tolist() == [True, True, False] and warm.poles[2] == with_lonely[3]
+    # from the starts, the pole the first fit held is fitted to the noise between the
+    # resonances (10.49 Hz, half the damping); the modes' poles hardly move
+    assert cold.refined.all()
+    half = np.abs(lam[[0, 2]].real)
+    assert np.all(np.abs(warm.poles[:2] - cold.poles[:2]) < 0.05 * half)
     leaves, repeats = np.array([False, False]), np.array([-1, 0])
     fit, at = _without_split_poles(omega, H, variance, free, np.zeros(0), leaves, repeats, 1)
     assert at.tolist() == [0, 0, 1] and fit.poles.size == 2

@@ -175,6 +175,11 @@ class PoleRefinement:
         variance as given, entry by entry: the residues are linear in the data, so the
         separable weights' estimate has the variance ``G V G^T`` whatever the weights.
         NaN where ``refined`` is False.
+    held : ndarray of bool, shape (m,)
+        Poles the fit held at their starts: asked to (``refine_poles``' ``held``), or taken
+        out of reach, unstable or out of width by the fit (every pole where there was no
+        fit). A pole not ``refined`` but not ``held`` was fitted, and its covariance came
+        out singular.
     """
 
     poles: np.ndarray
@@ -185,6 +190,7 @@ class PoleRefinement:
     residues: np.ndarray
     residue_variance: np.ndarray
     entry_variance: np.ndarray
+    held: np.ndarray
 
     def frequency_damping(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Natural frequency (Hz) and damping ratio of each pole with their standard
@@ -825,8 +831,8 @@ def refine_poles(
         of the model begins at the previous fit's poles). Reach and damping change are
         still judged from ``free``, and a pole not refined is left at ``free``.
     held : ndarray of bool, shape (m,), optional
-        Poles held at ``free`` from the start, as if they had strayed (the poles a previous
-        fit of the same resonances held). They are not refined.
+        Poles held at ``free`` from the start, as if they had strayed (say, the poles a
+        previous fit held, :attr:`PoleRefinement.held`). They are not refined.
 
     Returns
     -------
@@ -856,25 +862,27 @@ def refine_poles(
     if m == 0 or N < 2 * (2 * m + fixed.size + 1):
         return PoleRefinement(free0.copy(), nan_cov, np.full(m, np.nan), np.zeros(m, bool), 0,
                               np.full((m, *H.shape[1:]), np.nan, dtype=complex),
-                              np.full(m, np.nan), np.full((m, *H.shape[1:]), np.nan))
+                              np.full(m, np.nan), np.full((m, *H.shape[1:]), np.nan),
+                              np.ones(m, bool))
     s, sw, Y, entry_var = _whitened(omega, H, variance)
     # the halves of the rows' sums on two workers where an iteration's work pays for them
     work = 8.0 * N * m * (fixed.size + 2 * m + Y.shape[1])
     with freeing_map(jobs if work >= PARALLEL_MIN_FLOPS else 1, 2) as (_, pmap):
         poles, ok, it = _fit_holding_strays(s, sw, Y, free0, fixed, max_iterations, pmap,
                                             initial, held)
+        fit_held = ~ok
         idx = np.flatnonzero(ok)
         cov, disp = nan_cov, np.full(m, np.nan)
         if idx.size:
             # the held pole pairs were estimated too (by the subspace method): their
             # uncertainty is the refined poles' own wherever the two are correlated; the
             # band's resonances, that is: the rest is background (see _in_band)
-            held = np.concatenate([free0[~ok], fixed])
-            pair = held.imag > 1e-9 * np.maximum(np.abs(held), 1e-300)
-            pair[pair] = _in_band(held[pair], omega)
-            cov[idx], disp[idx] = _covariance(_Problem.make(s, sw, Y, held[~pair], pmap),
-                                              poles[idx], held[pair], separable_ratio(variance),
-                                              jobs)
+            others = np.concatenate([free0[~ok], fixed])
+            pair = others.imag > 1e-9 * np.maximum(np.abs(others), 1e-300)
+            pair[pair] = _in_band(others[pair], omega)
+            cov[idx], disp[idx] = _covariance(_Problem.make(s, sw, Y, others[~pair], pmap),
+                                              poles[idx], others[pair],
+                                              separable_ratio(variance), jobs)
     singular = np.zeros(m, bool)
     singular[idx] = ~np.all(np.isfinite(cov[idx]), axis=(1, 2)) | (cov[idx, 0, 0] < 0) | (
         cov[idx, 1, 1] < 0)
@@ -887,7 +895,7 @@ def refine_poles(
     return PoleRefinement(poles=poles, covariance=cov, dispersion=disp, refined=ok,
                           iterations=it, residues=residues.reshape(m, *H.shape[1:]),
                           residue_variance=residue_var,
-                          entry_variance=entry_rv.reshape(m, *H.shape[1:]))
+                          entry_variance=entry_rv.reshape(m, *H.shape[1:]), held=fit_held)
 
 
 def _in_band(pairs: np.ndarray, omega: np.ndarray) -> np.ndarray:

@@ -348,14 +348,16 @@ def _without_split_poles(
     its partner's (followed to a pole that stayed).
 
     ``previous``, the fit of all of ``free``, is where the fit begins (the poles that stay
-    move little when a split leaves), with the poles it did not refine held; reach and
-    damping change are still judged from ``free``."""
+    move little when a split leaves), with the poles it held (:attr:`PoleRefinement.held`:
+    out of reach, unstable or out of width there) held from the start: the refit refines no
+    pole the first fit could not (a refit from the starts may fit such a pole to the noise
+    between resonances); reach and damping change are still judged from ``free``."""
     k = repeats.size
     gone = np.zeros(free.size, bool)
     gone[:k] = leaves | (repeats >= 0)
     initial = held = None
     if previous is not None:
-        initial, held = previous.poles[~gone], ~previous.refined[~gone]
+        initial, held = previous.poles[~gone], previous.held[~gone]
     fit = refine_poles(omega, H, variance, free[~gone], fixed, jobs=jobs, initial=initial,
                        held=held)
     at = np.cumsum(~gone) - 1
