@@ -557,6 +557,30 @@ def test_cli_killed_at_any_moment_leaves_no_partial_report(tmp_path):
         proc.wait(timeout=30)
         if report.exists():
             assert json.loads(report.read_text())["modes"] == complete
+        # nor a process: the file's reading child, killed before it answered, ends too
+        assert not processes_naming(str(report), within=10.0)
+
+
+def processes_naming(text: str, within: float) -> list[int]:
+    """Processes whose command line holds ``text`` after at most ``within`` seconds (Linux's
+    /proc; none elsewhere)."""
+    proc = Path("/proc")
+    found: list[int] = []
+    end = time.monotonic() + within
+    while proc.is_dir():
+        found = []
+        for entry in proc.iterdir():
+            if entry.name.isdigit() and int(entry.name) != os.getpid():
+                try:
+                    line = (entry / "cmdline").read_bytes().replace(b"\0", b" ").decode()
+                except OSError:
+                    continue
+                if text in line:
+                    found.append(int(entry.name))
+        if not found or time.monotonic() > end:
+            break
+        time.sleep(0.1)
+    return found
 
 
 def in_process_cli(*args: str):

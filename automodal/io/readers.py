@@ -276,7 +276,8 @@ def _read_in_child(path: str | os.PathLike[str], options: TimeOptions | None,
     source = str(path)
     context = multiprocessing.get_context("fork")
     receive, send = context.Pipe(duplex=False)
-    child = context.Process(target=_child_reads, args=(path, options, send), daemon=True)
+    child = context.Process(target=_child_reads, args=(path, options, send, receive),
+                            daemon=True)
     deadline = time.monotonic() + timeout
     child.start()
     send.close()
@@ -318,9 +319,17 @@ def _read_in_child(path: str | os.PathLike[str], options: TimeOptions | None,
     return pending
 
 
-def _child_reads(path: str | os.PathLike[str], options: TimeOptions | None, send: Any) -> None:
+def _child_reads(path: str | os.PathLike[str], options: TimeOptions | None, send: Any,
+                 receive: Any = None) -> None:
     """In the child: read, and send ``("data", FRFData or TimeSeries)``,
-    ``("refused", problem, path)`` or ``("error", exception)`` back."""
+    ``("refused", problem, path)`` or ``("error", exception)`` back.
+
+    ``receive``, the parent's end of the pipe, which the fork copied, is closed first: a
+    parent killed meanwhile (a cron job's time limit) then leaves the pipe without a reader,
+    and the answer's send fails at once, ending the child, rather than waiting forever for
+    room in the pipe."""
+    if receive is not None:
+        receive.close()
     answer: tuple[Any, ...]
     try:
         answer = ("data", _read_by_suffix(path, options))
@@ -330,9 +339,14 @@ def _child_reads(path: str | os.PathLike[str], options: TimeOptions | None, send
         answer = ("error", exc)
     try:
         send.send(answer)
+    except OSError:  # the parent is gone (a broken pipe): nobody to answer
+        pass
     except Exception as exc:  # noqa: BLE001 - an exception that cannot be pickled
         text = " ".join(str(answer[-1]).split())
-        send.send(("error", RuntimeError(f"{type(answer[-1]).__name__}: {text} ({exc})")))
+        try:
+            send.send(("error", RuntimeError(f"{type(answer[-1]).__name__}: {text} ({exc})")))
+        except OSError:
+            pass
     finally:
         send.close()
 
