@@ -558,7 +558,10 @@ def test_cli_killed_at_any_moment_leaves_no_partial_report(tmp_path):
         if report.exists():
             assert json.loads(report.read_text())["modes"] == complete
         # nor a process: the file's reading child, killed before it answered, ends too
-        assert not processes_naming(str(report), within=10.0)
+        left = processes_naming(str(report), within=10.0)
+        for pid in left:
+            os.kill(pid, signal.SIGKILL)
+        assert not left
 
 
 def processes_naming(text: str, within: float) -> list[int]:
@@ -572,10 +575,10 @@ def processes_naming(text: str, within: float) -> list[int]:
         for entry in proc.iterdir():
             if entry.name.isdigit() and int(entry.name) != os.getpid():
                 try:
-                    line = (entry / "cmdline").read_bytes().replace(b"\0", b" ").decode()
+                    line = (entry / "cmdline").read_bytes()
                 except OSError:
                     continue
-                if text in line:
+                if os.fsencode(text) in line:
                     found.append(int(entry.name))
         if not found or time.monotonic() > end:
             break

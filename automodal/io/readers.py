@@ -327,7 +327,8 @@ def _child_reads(path: str | os.PathLike[str], options: TimeOptions | None, send
     ``receive``, the parent's end of the pipe, which the fork copied, is closed first: a
     parent killed meanwhile (a cron job's time limit) then leaves the pipe without a reader,
     and the answer's send fails at once, ending the child, rather than waiting forever for
-    room in the pipe."""
+    room in the pipe. (A child caught in an endless read, which the time limit is for, still
+    outlives a parent killed meanwhile.)"""
     if receive is not None:
         receive.close()
     answer: tuple[Any, ...]
@@ -339,13 +340,13 @@ def _child_reads(path: str | os.PathLike[str], options: TimeOptions | None, send
         answer = ("error", exc)
     try:
         send.send(answer)
-    except OSError:  # the parent is gone (a broken pipe): nobody to answer
+    except BrokenPipeError:  # the parent is gone: nobody to answer
         pass
     except Exception as exc:  # noqa: BLE001 - an exception that cannot be pickled
         text = " ".join(str(answer[-1]).split())
         try:
             send.send(("error", RuntimeError(f"{type(answer[-1]).__name__}: {text} ({exc})")))
-        except OSError:
+        except BrokenPipeError:
             pass
     finally:
         send.close()
