@@ -490,15 +490,18 @@ def test_pipeline_intervals_cover_the_truth_over_50_noise_seeds():
     assert 0.88 <= np.mean(cover_z) <= 0.99, np.mean(cover_z)
 
 
-def _mode(ref: int, physical: bool, f: float, occurrence: float = 0.8, members: int = 80):
+def _mode(ref: int, physical: bool, f: float, occurrence: float = 0.8, members: int = 80,
+          snr: float | None = None):
+    from automodal.core.physicalness import SNR_FEATURE_NAME
     from automodal.result import IdentifiedMode
 
+    features = {"occurrence": occurrence} | ({} if snr is None else {SNR_FEATURE_NAME: snr})
     return IdentifiedMode(
         id=ref, frequency_hz=f, frequency_std_hz=0.01, frequency_ci95_hz=(f - 0.02, f + 0.02),
         damping_ratio=0.005, damping_std=1e-4, damping_ci95=(0.0048, 0.0052),
         physicalness=0.9 if physical else 0.1, physical=physical, n_members=members,
         mode_shape=np.ones(3, complex), mode_shape_std=np.zeros(3), mpc=1.0, cluster=ref,
-        cluster_dim=1, features={"occurrence": occurrence}, reference_mode=ref)
+        cluster_dim=1, features=features, reference_mode=ref)
 
 
 def _two_modes_two_inputs(n_inputs: int, seed: int = 3, noise: float = 0.01):
@@ -539,14 +542,26 @@ def test_a_needed_companion_of_a_physical_mode_is_physical_with_two_inputs(n_inp
         assert all(m.physical for m in out)
 
 
-def test_a_companion_found_by_a_minority_of_replicates_stays_not_physical():
+@pytest.mark.parametrize("occurrence, members, snr, promoted", [
+    (0.3, 30, 3.8, True),  # a minority with a clear SNR (SNR^2 per parameter 6e3)
+    (0.3, 30, 1.1, False),  # a minority without one (13 per parameter)
+    (0.3, 30, None, False),  # no noise model: the majority rule
+    (0.6, 60, None, True),
+    (0.05, 5, 6.0, False),  # sporadic, whatever its SNR
+    (0.9, 1, 6.0, False),  # one member
+])
+def test_a_needed_companion_seen_by_few_replicates(occurrence, members, snr, promoted):
+    """A companion the likelihood-ratio test needs is physical when a majority of the
+    replicates found its cluster, or a minority of at least a tenth with the SNR of a
+    clearly physical mode; never with fewer or with one member."""
     from automodal.core.summary import refine_physical_modes
 
     omega, H, variance, lam = _two_modes_two_inputs(2)
     states = np.concatenate([lam, lam.conj()])
-    modes = [_mode(0, True, 10.0), _mode(1, False, 10.05, occurrence=0.3, members=30)]
+    modes = [_mode(0, True, 10.0),
+             _mode(1, False, 10.05, occurrence=occurrence, members=members, snr=snr)]
     out = refine_physical_modes(modes, states, np.array([0, 1]), omega, H, variance)
-    assert not [m for m in out if m.reference_mode == 1][0].physical
+    assert [m for m in out if m.reference_mode == 1][0].physical is promoted
 
 
 def test_a_companion_of_a_single_mode_is_not_promoted():
