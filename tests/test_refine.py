@@ -545,9 +545,14 @@ def test_a_needed_companion_of_a_physical_mode_is_physical_with_two_inputs(n_inp
 @pytest.mark.parametrize("occurrence, members, snr, promoted", [
     (0.3, 30, 3.8, True),  # a minority with a clear SNR (SNR^2 per parameter 6e3)
     (0.3, 30, 1.1, False),  # a minority without one (13 per parameter)
-    (0.3, 30, None, False),  # no noise model: the majority rule
-    (0.6, 60, None, True),
-    (0.05, 5, 6.0, False),  # sporadic, whatever its SNR
+    (0.3, 30, 1.6, True),  # either side of the clear SNR, 10^1.5
+    (0.3, 30, 1.4, False),
+    (0.3, 30, float("nan"), False),
+    (0.3, 30, None, False),  # no SNR feature (envelope weighting): the majority rule
+    (0.5, 50, None, True),
+    (0.49, 49, None, False),
+    (0.1, 10, 3.8, True),  # a tenth of the replicates, and fewer
+    (0.09, 9, 6.0, False),
     (0.9, 1, 6.0, False),  # one member
 ])
 def test_a_needed_companion_seen_by_few_replicates(occurrence, members, snr, promoted):

@@ -32,7 +32,9 @@ With a noise model (issue 13) the fourth feature is the reference mode's SNR aga
 noise (:func:`snr_feature`), which means the same on every file: about what fitting noise
 gives a spurious mode for noise, far above it for a mode of the data. Whatever the
 features, a cluster of one member or found by a minority of the replicates is never
-physical (:func:`vetoed`).
+physical (:func:`vetoed`); the refinement may still make physical a companion the data need
+whose cluster a tenth of the replicates or more found, with a clear SNR
+(:func:`automodal.core.summary.refine_physical_modes`).
 """
 
 from __future__ import annotations
@@ -88,7 +90,9 @@ and is still a mode; on the noise path :func:`vetoed` applies the majority rule.
 
 MAJORITY = 0.5
 """A cluster found by fewer than this share of the replicates (occurrence) is never
-physical: a mode of the data must be seen by most resamples of it."""
+physical on its features: a mode of the data must be seen by most resamples of it (a
+companion the refinement's ratio test needs is the exception, with :data:`SPORADIC` and a
+clear SNR, :func:`automodal.core.summary.refine_physical_modes`)."""
 
 
 def snr_feature(snr2: float, params: int) -> float:

@@ -316,14 +316,15 @@ def _companion_vetoed(m: IdentifiedMode) -> bool:
     :data:`~automodal.core.physicalness.MAJORITY`) needs the SNR of a clearly physical
     mode, the SNR feature of
     :data:`~automodal.core.physicalness.SNR_PHYSICAL_PROTOTYPE` (SNR^2 30 times what
-    fitting noise gives a mode); without a noise model, the majority."""
+    fitting noise gives a mode); with no SNR feature (no noise weighting: the envelope's), the
+    majority."""
     occurrence = m.features.get("occurrence", 0.0)
     if m.n_members <= 1 or occurrence < physicalness.SPORADIC:
         return True
     if occurrence >= physicalness.MAJORITY:
         return False
     snr = m.features.get(physicalness.SNR_FEATURE_NAME)
-    return snr is None or snr < physicalness.SNR_PHYSICAL_PROTOTYPE[3]
+    return snr is None or not snr >= physicalness.SNR_PHYSICAL_PROTOTYPE[3]  # NaN: vetoed
 
 
 def _needed_companions(
