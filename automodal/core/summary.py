@@ -319,10 +319,10 @@ def _companion_vetoed(m: IdentifiedMode) -> bool:
     fitting noise gives a mode); with no SNR feature (no noise weighting: the envelope's), the
     majority."""
     occurrence = m.features.get("occurrence", 0.0)
+    if not physicalness.vetoed(occurrence, m.n_members):  # a majority, more than one member
+        return False
     if m.n_members <= 1 or occurrence < physicalness.SPORADIC:
         return True
-    if occurrence >= physicalness.MAJORITY:
-        return False
     snr = m.features.get(physicalness.SNR_FEATURE_NAME)
     return snr is None or not snr >= physicalness.SNR_PHYSICAL_PROTOTYPE[3]  # NaN: vetoed
 

@@ -320,7 +320,7 @@ def _read_in_child(path: str | os.PathLike[str], options: TimeOptions | None,
 
 
 def _child_reads(path: str | os.PathLike[str], options: TimeOptions | None, send: Any,
-                 receive: Any = None) -> None:
+                 receive: Any) -> None:
     """In the child: read, and send ``("data", FRFData or TimeSeries)``,
     ``("refused", problem, path)`` or ``("error", exception)`` back.
 
@@ -329,8 +329,7 @@ def _child_reads(path: str | os.PathLike[str], options: TimeOptions | None, send
     and the answer's send fails at once, ending the child, rather than waiting forever for
     room in the pipe. (A child caught in an endless read, which the time limit is for, still
     outlives a parent killed meanwhile.)"""
-    if receive is not None:
-        receive.close()
+    receive.close()
     answer: tuple[Any, ...]
     try:
         answer = ("data", _read_by_suffix(path, options))
