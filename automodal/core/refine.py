@@ -631,6 +631,17 @@ class _GramFit:
         ZY = Z.T @ self.Yf - At.T @ self.QtY + Vt.T @ self.VQY
         return ZZ, ZY, A, np.diag(ZtZ)
 
+    def _data_off_basis(self) -> np.ndarray:
+        """The data off the basis, line by line ``(2N, E)``: the same for every
+        evaluation, so formed at the first and kept (a :meth:`without` is a new fit, with
+        its own). On a 20 x 3 dense grid of 3000 lines (seed 1337 f_02) it was half of
+        each explicit evaluation's time."""
+        Y = self.__dict__.get("_Y")
+        if Y is None:
+            Y = self.Yf - self.B[:, self.p:] @ (self.QtY - self.V @ self.VQY)
+            object.__setattr__(self, "_Y", Y)  # a cache, not a field: frozen stays true
+        return Y
+
     def _explicit(self, X: np.ndarray, A: np.ndarray) -> tuple[float, np.ndarray]:
         """Cost and coefficients of the free columns ``X`` (``A = B^T X``) as :func:`_fit`
         finds them: the columns and the data off the basis formed line by line, the columns
@@ -638,7 +649,7 @@ class _GramFit:
         Qt = self.B[:, self.p:]
         kept = A[self.p:] - self.V @ (self.V.T @ A[self.p:])
         P = X - self.B[:, : self.p] @ A[: self.p] - Qt @ kept
-        Y = self.Yf - Qt @ (self.QtY - self.V @ self.VQY)
+        Y = self._data_off_basis()
         Qp, Rt, norms = _normalised_qr(P)
         QY = Qp.T @ Y
         R = Y - Qp @ QY
