@@ -507,9 +507,10 @@ def refine_physical_modes(
         (:func:`automodal.core.parallel.worker_count`); the result does not depend on it.
     """
     counts = Counter(m.reference_mode for m in modes if m.physical and m.reference_mode >= 0)
-    chosen = sorted(i for i, c in counts.items() if c == 1)
+    # the physical modes that have a reference mode of their own, by it
     by_reference = {m.reference_mode: m for m in modes
                     if m.physical and counts.get(m.reference_mode) == 1}
+    chosen = sorted(by_reference)
     # the lines as measured (prewarped ones of sampled spectra mapped back), in Hz
     lines_hz = (omega if pole_map is None else pole_map(1j * omega).imag) / (2.0 * np.pi)
     decay = 0.0 if pole_map is None else pole_map.shift
