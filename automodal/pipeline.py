@@ -462,18 +462,20 @@ def input_stage(
 def _identify_sub_bands(
     data: FRFData, s: Settings, plan: list[sub_bands.SubBand], warnings: list[str],
     progress: ProgressCallback | None, t0: float, order_of_whole: int,
-    part: bool = False, receptance: bool | None = None,
+    part: bool = False, receptance: bool | None = None, settled: bool = True,
 ) -> Result:
     """One identification per sub-band of ``plan``, side by side on the workers, merged
     (:func:`automodal.band_merge.merge_sub_bands`); ``warnings`` are the whole band's so
     far, ``t0`` when the run started, ``order_of_whole`` the reference order one model of
-    the band would have had, ``part`` and ``receptance`` (the band's form, kept by its
+    the band would have had (``settled``: whether the band's scan ran to its end rather than
+    stopping for the split), ``part`` and ``receptance`` (the band's form, kept by its
     sub-bands) as in :func:`_identify`."""
     def one(i: int, b: sub_bands.SubBand) -> Callable[[ProgressCallback | None], Result]:
         return lambda sent: _identify(
             data, replace(inner, band_hz=b.analysed_hz),
             within(sent, f"sub-band {i} of {len(plan)}"),
-            part=True, parent_order=order_of_whole, receptance=receptance)
+            part=True, parent_order=order_of_whole, receptance=receptance,
+            parent_settled=settled)
 
     # the sub-bands are independent problems (each is the same whatever runs beside it, and
     # whatever its jobs) and run side by side, their progress in sub-band order; jobs asked
@@ -545,13 +547,16 @@ def _choose_orders(
 def _identify(
     data: FRFData, s: Settings, progress: ProgressCallback | None, part: bool = False,
     parent_order: int | None = None, receptance: bool | None = None,
+    parent_settled: bool = True,
 ) -> Result:
     """:func:`identify` with BLAS limited by the caller (``part``: one sub-band of a split
     band, whose modes' resolution warnings the merged result gives; ``parent_order``: the
-    reference order of the band it was split from, which its own must be below for it to be
-    split again; ``receptance``: the form identified, as for :func:`prepare`; a sub-band
-    keeps its band's, chosen on the band's whole magnitude trend rather than on a part of
-    it cut beside a peak)."""
+    reference order of the band it was split from, which, where that band's scan ran to its
+    end (``parent_settled``), caps its own and which its own must be below for it to be
+    split again (a scan the split rule ended early stopped at an order that had not
+    settled: no bound on a part of the band, ``docs/method.md`` 2.1); ``receptance``: the
+    form identified, as for :func:`prepare`; a sub-band keeps its band's, chosen on the
+    band's whole magnitude trend rather than on a part of it cut beside a peak)."""
     t0 = time.perf_counter()
     analysis = data.attributes.get("time_analysis")
     warnings: list[str] = [] if part or not isinstance(analysis, dict) else list(
@@ -565,10 +570,10 @@ def _identify(
     tell(progress, "orders")
     prepared = p
     stages: dict = {}  # the scan's stages, for a rescan below
-    p, choice = _choose_orders(prepared, s, rank, split_work, warnings, parent_order, stages)
+    cap = parent_order if parent_settled else None
+    p, choice = _choose_orders(prepared, s, rank, split_work, warnings, cap, stages)
     wanted = n_bands = 1
-    if s.sub_bands and s.max_order is None and (parent_order is None
-                                                 or choice.reference < parent_order):
+    if s.sub_bands and s.max_order is None and (cap is None or choice.reference < cap):
         # a part is split again only when splitting made its model smaller: where the order
         # comes from the noise and the lines rather than the modes (a 9-DOF chain over 51 201
         # lines: a 0.2 Hz sub-band with one mode still took 112 states), splitting again
@@ -586,14 +591,15 @@ def _identify(
             _noise_of_scaled(prepared, p))
         if len(plan) > 1:  # a sub-band too costly is split again in its own run
             return _identify_sub_bands(data, s, plan, warnings, progress, t0,
-                                       choice.reference, part, p.factor is not None)
+                                       choice.reference, part, p.factor is not None,
+                                       choice.complete)
     if (split_work is not None and not choice.complete
             and (wanted > 1 or choice.reference >= (parent_order or 0) > 0)):
         # no split after all: the scan ended early, at a stage whose order had not settled
         # (a 9-DOF chain over 51 201 lines: n0 = 56 there against 36 when scanned on); a
         # scan that ended on its own would only be repeated (a dense grid's sub-band: 1.4 s
         # of a 12.5 s file)
-        p, choice = _choose_orders(prepared, s, rank, None, warnings, parent_order, stages)
+        p, choice = _choose_orders(prepared, s, rank, None, warnings, cap, stages)
     if s.block_rows is not None and choice.block_rows < s.block_rows:
         warnings.append(
             f"block rows {s.block_rows} asked for, but the {p.Hs.shape[0]} lines of"

@@ -293,6 +293,32 @@ def test_a_scan_cut_short_for_a_split_that_does_not_pay_is_run_again(monkeypatch
     assert len(calls) == 2 and calls[1][0] is None  # scanned again without the split
 
 
+def test_a_sub_band_is_capped_only_by_a_scan_that_ran_to_its_end(split_everything, monkeypatch):
+    """A sub-band's reference is at most its band's only where the band's scan ran to its
+    end: a scan the split rule ended early stopped at a stage whose order had not settled,
+    so its reference is no bound on a part of the band (a 100-output grid's top sub-band,
+    78 of its 100 modes, was held at the 114 states of such a scan)."""
+    import automodal.pipeline as pipeline
+
+    calls = []
+    choose = pipeline._choose_orders
+
+    def recorded(*args, **kwargs):
+        p, choice = choose(*args, **kwargs)
+        calls.append((args[5], choice.reference, choice.complete))
+        return p, choice
+
+    monkeypatch.setattr(pipeline, "_choose_orders", recorded)
+    data, _ = _siso_chain()
+    result = identify(data, Settings(seed=0, n_bootstrap=10, jobs=1))
+    assert "sub_bands" in result.orders
+    top_cap, _, top_complete = calls[0]
+    assert top_cap is None and not top_complete  # the whole band's scan, cut for the split
+    assert len(calls) > 1 and calls[1][0] is None  # so its first sub-band is not capped
+    settled = {reference for _, reference, complete in calls if complete}
+    assert all(cap is None or cap in settled for cap, _, _ in calls)
+
+
 def test_a_noise_model_too_low_does_not_send_the_order_up():
     """H1 of noise alone with a wrong ``n_averages`` attribute (40 for 8: the noise model
     5 times too low). The scan fits nothing to that noise and the envelope path takes
