@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import time
 from collections import Counter
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
 
@@ -489,17 +489,47 @@ def _identify_sub_bands(
         # cannot be put side by side, so the band is identified as one
         return _identify(data, replace(s, sub_bands=False), progress, part,
                          receptance=receptance)
-    warnings.append(
-        f"[{plan[0].analysed_hz[0]:g}, {plan[-1].analysed_hz[1]:g}] Hz was identified in"
-        f" {len(plan)} sub-bands, cut at valleys between resonance"
-        f" peaks (one model of it would have had {order_of_whole} states; --one-band"
-        " (sub_bands=False) or --order keeps one model)")
     merged = merge_sub_bands(results, plan, s.to_dict(), warnings, 0.0)
-    if not part:
+    if not part:  # a part's split is said by the whole band's run, once
+        leaves = _leaf_orders(merged.orders)
+        merged.warnings.append(_split_warning(
+            (plan[0].analysed_hz[0], plan[-1].analysed_hz[1]), len(plan), len(leaves),
+            order_of_whole, settled))
+        directions = [d for d in (o.get("replicate_directions") for o in leaves)
+                      if d is not None]
+        if directions:
+            merged.warnings.append(_principal_warning(directions,
+                                                      len(merged.shape_channels)))
         lines = merged.frf_fit[0] if merged.frf_fit is not None else data.frequency
         merged.warnings.extend(mode_warnings(merged.modes, lines, pole_map_of(data).shift))
     merged.runtime_s = time.perf_counter() - t0
     return merged
+
+
+def _leaf_orders(orders: dict) -> list[dict]:
+    """The orders of the bands a run identified (``Result.orders``): its own, or, for a
+    band split into sub-bands, those of each sub-band's, followed into sub-bands split
+    again, in frequency order."""
+    parts = orders.get("sub_bands")
+    if not parts:
+        return [orders]
+    return [leaf for part in parts for leaf in _leaf_orders(part)]
+
+
+def _split_warning(band_hz: tuple[float, float], n_first: int, n_leaves: int,
+                   order_of_whole: int, settled: bool) -> str:
+    """The warning that ``band_hz`` was identified in ``n_leaves`` sub-bands (``n_first`` at
+    the first split, the rest where a part was split again), one model of it having
+    ``order_of_whole`` states (``settled``: where its order scan ran to its end, else where
+    the scan stopped for the split)."""
+    again = (f" ({n_first} at first, then parts split again where one model of a part"
+             " still cost too much)" if n_leaves > n_first else "")
+    size = (f"one model of it would have had {order_of_whole} states" if settled else
+            f"its order scan stopped for the split at {order_of_whole} states")
+    return (f"[{band_hz[0]:g}, {band_hz[1]:g}] Hz was identified in {n_leaves} sub-bands"
+            f"{again}, cut at valleys between resonances ({size}); settings.orders.sub_bands"
+            " gives each sub-band's band and orders; --one-band (sub_bands=False) or --order"
+            " keeps one model")
 
 
 def _noise_of_scaled(noise_weighted: Prepared, p: Prepared) -> np.ndarray | None:
@@ -620,6 +650,8 @@ def _identify(
         if summary.confirmed_modes(b.modes) > summary.confirmed_modes(a.modes):
             a = b
     warnings.extend(a.warnings)
+    if a.directions is not None and not part:  # a split band's merge says it once
+        warnings.append(_principal_warning([a.directions], p.Hs.shape[1]))
     ref, reps, clusters, modes = a.ref, a.reps, a.clusters, a.modes
     fit = _physical_fit(p, modes)
     if not part:
@@ -633,7 +665,8 @@ def _identify(
         poles=PoleTable.from_poles(reps.poles, clusters.labels, reps.replicate),
         band_hz=(float(p.band_hz[0]), float(p.band_hz[1])),
         orders=_orders_info(choice, ref, reps.n_qr, p.T, p.weighting, p.pole_map,
-                            "measured" if p.factor is None else "receptance", tried),
+                            "measured" if p.factor is None else "receptance", tried,
+                            a.directions),
         runtime_s=time.perf_counter() - t0,
         reference_model=ref.model,
         reciprocity=p.reciprocal,
@@ -651,8 +684,9 @@ def _identify(
 @dataclass
 class _Analysis:
     """A band's analysis at one number of block rows: the reference model, its dispersion
-    against the noise model, the replicates, their clusters, the modes and the warnings the
-    replicates gave."""
+    against the noise model, the replicates, their clusters, the modes, the warnings the
+    replicates gave, and the principal directions of the outputs the replicates identified
+    on (``None``: all the outputs)."""
 
     ref: reference.Reference
     dispersion: float
@@ -660,6 +694,7 @@ class _Analysis:
     clusters: reference.Clusters
     modes: list[IdentifiedMode]
     warnings: list[str]
+    directions: int | None = None
 
 
 def _analyse(
@@ -698,7 +733,8 @@ def _analyse(
             modes, ref.modal.poles, ref.modal.oscillatory, p.omega, p.H, p.noise_variance,
             p.pole_map, s.jobs)
     return _Analysis(ref=ref, dispersion=dispersion, reps=reps, clusters=clusters,
-                     modes=modes, warnings=warnings)
+                     modes=modes, warnings=warnings,
+                     directions=None if outputs is None else int(outputs.shape[1]))
 
 
 def _check_decaying(p: Prepared, ref: reference.Reference, snr2: np.ndarray,
@@ -856,25 +892,34 @@ def _replicates(
                 " across lines, so the intervals of this line bootstrap are too narrow"
                 " (several times, on simulated tests); give the time records, or convert"
                 " them again, so that the bootstrap resamples stretches of the record")
-    if outputs is not None:
-        warnings.append(
-            f"the bootstrap replicates identified on {outputs.shape[1]} principal directions"
-            f" of the {outputs.shape[0]} outputs (twice those above the noise): their shapes"
-            " vary only within those directions, and mode_shape_std adds the others' share"
-            " of the noise as the directions without structure among them show it")
     return replicates.stack_replicates(reps, p.H.shape[1], p.pole_map)
+
+
+def _principal_warning(directions: Sequence[int], n_outputs: int) -> str:
+    """The warning that the bootstrap replicates identified on principal directions of the
+    outputs (:func:`automodal.core.whitening.principal_outputs`): ``directions``, their
+    number in each band analysed (a split band's sub-bands each have their own)."""
+    lo, hi = min(directions), max(directions)
+    count, each = (f"{lo}", "") if lo == hi else (f"{lo}-{hi}", "per sub-band, ")
+    return (f"the bootstrap replicates identified on {count} principal directions of the"
+            f" {n_outputs} outputs ({each}twice those above the noise): their shapes vary only"
+            " within those directions, and mode_shape_std adds the others' share of the noise"
+            " as the directions without structure among them show it")
 
 
 def _orders_info(
     choice: order.OrderChoice, ref: reference.Reference, n_qr: int, T: float,
     weighting: str, pole_map: PoleMap, form: str, tried: list[int],
+    directions: int | None = None,
 ) -> dict[str, object]:
     """``Result.orders``: the scan, the orders chosen and how the models were computed
     (``weighting``: the one that ran, ``"noise"`` or ``"envelope"``; ``form``: the FRF's
     the models fitted, ``"measured"`` or ``"receptance"``; ``window_decay_per_s``
     and ``discrete_sample_rate_hz``: how the model's poles became the structure's, see
     :class:`~automodal.core.pole_map.PoleMap`; ``tried``: the block rows of every analysis
-    of the band, in order, see :func:`_retry_block_rows`)."""
+    of the band, in order, see :func:`_retry_block_rows`; ``directions``: the principal
+    directions of the outputs the kept analysis's replicates identified on, ``None`` for
+    all the outputs)."""
     return {
         "scanned": [int(x) for x in choice.scanned],
         "misfit": [float(x) for x in choice.misfit],
@@ -889,6 +934,7 @@ def _orders_info(
         "form": form,
         "bilinear_T": float(T),
         "replicates_on_qr_path": int(n_qr),
+        "replicate_directions": directions,
         "reference_path": ref.model.path,
         "window_decay_per_s": float(pole_map.shift),
         "discrete_sample_rate_hz": pole_map.sample_rate,

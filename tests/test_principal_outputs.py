@@ -192,3 +192,26 @@ def test_dropped_spread_of_isotropic_scatter():
     left_out = 1.0 - np.sum(V**2, axis=1)
     np.testing.assert_allclose(got, 0.01 * np.sqrt(left_out), rtol=0.1)
     assert not dropped_spread(kept[:, :1], rep, V).any()
+
+
+def test_a_split_run_says_its_split_and_its_directions_once(many_sensors, monkeypatch):
+    """A band split into sub-bands, and parts split again: one warning for the split (with
+    the number of sub-bands identified, as ``settings.orders.sub_bands`` lists them) and one
+    for the principal directions (the range over the sub-bands), not one per part."""
+    from automodal.core import sub_bands
+    from automodal.pipeline import _leaf_orders, identify
+    from automodal.settings import Settings
+
+    *_, modes, data = many_sensors
+    monkeypatch.setattr(sub_bands, "WORK_LIMIT", 1e4)  # every band with peaks too costly
+    res = identify(data, Settings(seed=1, n_bootstrap=20))
+    leaves = _leaf_orders(res.orders)
+    assert len(leaves) >= 2
+    split = [w for w in res.warnings if "sub-bands" in w and "identified in" in w]
+    assert len(split) == 1 and f"identified in {len(leaves)} sub-bands" in split[0]
+    directions = [w for w in res.warnings if "principal directions" in w]
+    assert len(directions) == 1
+    counts = sorted({o["replicate_directions"] for o in leaves} - {None})
+    assert counts, leaves
+    said = f"{counts[0]}" if len(counts) == 1 else f"{counts[0]}-{counts[-1]}"
+    assert f"identified on {said} principal directions of the 30 outputs" in directions[0]
