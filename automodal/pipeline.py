@@ -498,8 +498,8 @@ def _identify_sub_bands(
         directions = [d for d in (o.get("replicate_directions") for o in leaves)
                       if d is not None]
         if directions:
-            merged.warnings.append(_principal_warning(directions,
-                                                      len(merged.shape_channels)))
+            merged.warnings.append(_principal_warning(
+                directions, len(merged.shape_channels), len(leaves)))
         lines = merged.frf_fit[0] if merged.frf_fit is not None else data.frequency
         merged.warnings.extend(mode_warnings(merged.modes, lines, pole_map_of(data).shift))
     merged.runtime_s = time.perf_counter() - t0
@@ -895,14 +895,20 @@ def _replicates(
     return replicates.stack_replicates(reps, p.H.shape[1], p.pole_map)
 
 
-def _principal_warning(directions: Sequence[int], n_outputs: int) -> str:
+def _principal_warning(directions: Sequence[int], n_outputs: int,
+                       n_bands: int | None = None) -> str:
     """The warning that the bootstrap replicates identified on principal directions of the
     outputs (:func:`automodal.core.whitening.principal_outputs`): ``directions``, their
-    number in each band analysed (a split band's sub-bands each have their own)."""
+    number in each band analysed on them, of ``n_bands`` sub-bands of a split band (the
+    others' replicates used every output)."""
     lo, hi = min(directions), max(directions)
-    count, each = (f"{lo}", "") if lo == hi else (f"{lo}-{hi}", "per sub-band, ")
+    scope = [] if lo == hi else ["per sub-band"]
+    if n_bands is not None and len(directions) < n_bands:
+        scope.append(f"in {len(directions)} of the {n_bands} sub-bands")
+    scope.append("twice those above the noise")
+    count = f"{lo}" if lo == hi else f"{lo}-{hi}"
     return (f"the bootstrap replicates identified on {count} principal directions of the"
-            f" {n_outputs} outputs ({each}twice those above the noise): their shapes vary only"
+            f" {n_outputs} outputs ({', '.join(scope)}): their shapes vary only"
             " within those directions, and mode_shape_std adds the others' share of the noise"
             " as the directions without structure among them show it")
 

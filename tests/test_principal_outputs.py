@@ -215,3 +215,14 @@ def test_a_split_run_says_its_split_and_its_directions_once(many_sensors, monkey
     assert counts, leaves
     said = f"{counts[0]}" if len(counts) == 1 else f"{counts[0]}-{counts[-1]}"
     assert f"identified on {said} principal directions of the 30 outputs" in directions[0]
+
+
+def test_the_directions_warning_says_how_many_sub_bands_used_them():
+    from automodal.pipeline import _principal_warning
+
+    one = _principal_warning([20], 25)
+    assert "on 20 principal directions of the 25 outputs (twice those" in one
+    assert "on 20 principal directions of the 25 outputs (in 1 of the 2 sub-bands, twice" \
+        in _principal_warning([20], 25, 2)
+    assert "on 12-18 principal directions of the 30 outputs (per sub-band, twice" \
+        in _principal_warning([12, 18, 14], 30, 3)
