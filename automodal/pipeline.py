@@ -495,11 +495,7 @@ def _identify_sub_bands(
         merged.warnings.append(_split_warning(
             (plan[0].analysed_hz[0], plan[-1].analysed_hz[1]), len(plan), len(leaves),
             order_of_whole, settled))
-        directions = [d for d in (o.get("replicate_directions") for o in leaves)
-                      if d is not None]
-        if directions:
-            merged.warnings.append(_principal_warning(
-                directions, len(merged.shape_channels), len(leaves)))
+        merged.warnings.extend(_directions_warning(merged.orders, len(merged.shape_channels)))
         lines = merged.frf_fit[0] if merged.frf_fit is not None else data.frequency
         merged.warnings.extend(mode_warnings(merged.modes, lines, pole_map_of(data).shift))
     merged.runtime_s = time.perf_counter() - t0
@@ -514,6 +510,17 @@ def _leaf_orders(orders: dict) -> list[dict]:
     if not parts:
         return [orders]
     return [leaf for part in parts for leaf in _leaf_orders(part)]
+
+
+def _directions_warning(orders: dict, n_outputs: int) -> list[str]:
+    """The principal-directions warning (:func:`_principal_warning`) of a run whose orders
+    are ``orders`` (``Result.orders``; a split band's, over its sub-bands), or none where
+    every band's replicates used all ``n_outputs`` outputs."""
+    leaves = _leaf_orders(orders)
+    directions = [d for d in (o.get("replicate_directions") for o in leaves) if d is not None]
+    if not directions:
+        return []
+    return [_principal_warning(directions, n_outputs, len(leaves) if len(leaves) > 1 else None)]
 
 
 def _split_warning(band_hz: tuple[float, float], n_first: int, n_leaves: int,
@@ -650,11 +657,12 @@ def _identify(
         if summary.confirmed_modes(b.modes) > summary.confirmed_modes(a.modes):
             a = b
     warnings.extend(a.warnings)
-    if a.directions is not None and not part:  # a split band's merge says it once
-        warnings.append(_principal_warning([a.directions], p.Hs.shape[1]))
     ref, reps, clusters, modes = a.ref, a.reps, a.clusters, a.modes
     fit = _physical_fit(p, modes)
-    if not part:
+    orders = _orders_info(choice, ref, reps.n_qr, p.T, p.weighting, p.pole_map,
+                          "measured" if p.factor is None else "receptance", tried, a.directions)
+    if not part:  # a split band's merge says it once for its sub-bands
+        warnings.extend(_directions_warning(orders, p.Hs.shape[1]))
         warnings.extend(mode_warnings(modes, p.frequency, p.pole_map.shift))
     return Result(
         modes=modes,
@@ -664,9 +672,7 @@ def _identify(
         warnings=warnings,
         poles=PoleTable.from_poles(reps.poles, clusters.labels, reps.replicate),
         band_hz=(float(p.band_hz[0]), float(p.band_hz[1])),
-        orders=_orders_info(choice, ref, reps.n_qr, p.T, p.weighting, p.pole_map,
-                            "measured" if p.factor is None else "receptance", tried,
-                            a.directions),
+        orders=orders,
         runtime_s=time.perf_counter() - t0,
         reference_model=ref.model,
         reciprocity=p.reciprocal,
