@@ -20,8 +20,8 @@ modes in frequency order. It splits the coverage by groups of one mode, groups t
 rank can resolve, and groups larger than it, where a mode correct to its interval is still
 counted against whichever of the group's lowest true modes it was paired with.
 
-    python benchmarks/family_coverage.py DIR [DIR ...]   # folders of f_XX.truth.json and
-                                                           # f_XX.report.json (after scoring)
+    python benchmarks/family_coverage.py DIR [DIR ...]   # folders of NAME.truth.json and
+                                                           # NAME.report.json (after scoring)
 """
 
 from __future__ import annotations
@@ -124,7 +124,7 @@ def main() -> None:
     groups: dict[str, list[dict]] = defaultdict(list)
     paired: dict[str, list[dict]] = defaultdict(list)
     for folder in args.dirs:
-        for tf in sorted(folder.glob("f_*.truth.json")):
+        for tf in sorted(folder.glob("*.truth.json")):
             rf = tf.with_name(tf.name.replace(".truth.json", ".report.json"))
             if not rf.exists():
                 continue
