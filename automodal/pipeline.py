@@ -737,7 +737,7 @@ def _analyse(
         tell(progress, "refinement")
         modes = summary.refine_physical_modes(
             modes, ref.modal.poles, ref.modal.oscillatory, p.omega, p.H, p.noise_variance,
-            p.pole_map, s.jobs)
+            p.pole_map, s.jobs, s.n_bootstrap)
     return _Analysis(ref=ref, dispersion=dispersion, reps=reps, clusters=clusters,
                      modes=modes, warnings=warnings,
                      directions=None if outputs is None else int(outputs.shape[1]))

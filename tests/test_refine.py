@@ -1183,3 +1183,102 @@ def test_a_duplicate_resolved_from_its_nearest_pole_was_carried_off():
     resolved[1, 0] = resolved[0, 1] = True  # 1 and 0 resolved; 3 and 2 not
     resolved[3, 0] = resolved[0, 3] = True  # 3 resolved from 0, which is not its nearest
     assert _carried_off(poles, duplicate, resolved).tolist() == [False, True, False, False]
+
+
+def _strong_and_weak(weak_snr: float, seed: int):
+    """A strong mode at 10 Hz and a weak one at 20 Hz of matched-filter SNR ``weak_snr``
+    (0: no weak mode in the data), 3 outputs x 1 input, 1000 lines, additive noise of 1 %
+    of the strong mode's RMS. Returns the lines, FRF, noise variance and both poles."""
+    rng = np.random.default_rng(seed)
+    lam = 2 * np.pi * np.array([10.0, 20.0]) * (-0.01 + 1j * np.sqrt(1 - 0.01**2))
+    omega = 2 * np.pi * np.linspace(5, 25, 1000)
+    s = 1j * omega
+    shapes = np.array([[1.0, 0.5, -0.3], [0.4, -1.0, 0.7]])
+
+    def term(r):
+        return np.einsum("i,f->fi", shapes[r], 1 / (s - lam[r]) + 1 / (s - lam[r].conj()))
+
+    strong, weak = term(0), term(1)
+    level = 0.01 * np.sqrt(np.mean(np.abs(strong) ** 2))
+    weak *= weak_snr / np.sqrt(np.sum(np.abs(weak) ** 2) / level**2)
+    H = (strong + weak)[:, :, None] + level * sim.complex_gaussian((1000, 3, 1), 1.0, rng)
+    return omega, H, np.full(H.shape, level**2), lam
+
+
+def _weak_candidate(physicalness=0.4, members=80, occurrence=0.8, snr=1.5):
+    from dataclasses import replace
+
+    return replace(_mode(1, False, 20.0, occurrence=occurrence, members=members, snr=snr),
+                   physicalness=physicalness)
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_a_weak_mode_the_data_hold_is_physical_with_the_refinements_statistics(seed):
+    """A cluster the c-means scored below the line (physicalness 0.4), found by a majority
+    of the replicates, whose mode has SNR 20 against the noise: refined beside the physical
+    mode, the data hold it, and it is reported physical with the refinement's interval
+    about its true frequency."""
+    from automodal.core.summary import refine_physical_modes
+
+    omega, H, variance, lam = _strong_and_weak(20.0, seed)
+    states = np.concatenate([lam * (1 + 1e-3), np.conj(lam * (1 + 1e-3))])
+    modes = [_mode(0, True, 10.0), _weak_candidate()]
+    out = refine_physical_modes(modes, states, np.array([0, 1]), omega, H, variance,
+                                n_bootstrap=100)
+    weak = [m for m in out if m.reference_mode == 1][0]
+    assert weak.physical and weak.estimator == "ml"
+    assert weak.physicalness == 0.4  # the c-means score is left as it was
+    assert abs(weak.frequency_hz - 20.0) < 3 * weak.frequency_std_hz
+    assert weak.frequency_std_hz < 0.05  # a quarter of its half-bandwidth
+
+
+def test_a_weak_candidate_where_the_data_hold_no_mode_stays_not_physical():
+    """The same candidate over 20 noise draws without the weak mode (its pole starts where
+    the mode would be): the refinement fits it to the noise, and the familywise test of its
+    residues (1 % over the model's modes) keeps it non-physical every time."""
+    from automodal.core.summary import refine_physical_modes
+
+    for seed in range(20):
+        omega, H, variance, lam = _strong_and_weak(0.0, seed)
+        states = np.concatenate([lam, np.conj(lam)])
+        modes = [_mode(0, True, 10.0), _weak_candidate()]
+        out = refine_physical_modes(modes, states, np.array([0, 1]), omega, H, variance,
+                                    n_bootstrap=100)
+        assert [m.physical for m in out] == [True, False], seed
+
+
+@pytest.mark.parametrize("candidate, n_bootstrap", [
+    (dict(physicalness=0.0), 100),  # vetoed in the clustering
+    (dict(members=49, occurrence=0.49), 100),  # a minority of the replicates
+    (dict(members=40, occurrence=0.8), 100),  # its own rank a minority (two ranks)
+    (dict(snr=None), 100),  # no noise model's SNR feature
+    ({}, None),  # the replicates' count not given: no weak modes looked for
+])
+def test_a_weak_candidate_needs_a_majority_and_no_veto(candidate, n_bootstrap):
+    """Only a cluster no rule vetoed, whose own rank a majority found, is a candidate: the
+    others stay non-physical whatever the data hold."""
+    from automodal.core.summary import refine_physical_modes
+
+    omega, H, variance, lam = _strong_and_weak(20.0, 1)
+    states = np.concatenate([lam, np.conj(lam)])
+    modes = [_mode(0, True, 10.0), _weak_candidate(**candidate)]
+    out = refine_physical_modes(modes, states, np.array([0, 1]), omega, H, variance,
+                                n_bootstrap=n_bootstrap)
+    assert [m.physical for m in out] == [True, False]
+
+
+def test_residue_wald_is_chi_square_on_noise_and_grows_with_the_mode():
+    """At a fixed pole with no mode in the data, ``residue_wald`` has the mean of a
+    chi-square with ``2 E`` degrees of freedom; with a mode of SNR 20 (SNR^2 400) about
+    twice its SNR^2, less what the other terms share (672 +- 52 over 30 draws)."""
+    from automodal.core.refine import residue_wald
+
+    stats = []
+    for seed in range(200):
+        omega, H, variance, lam = _strong_and_weak(0.0, seed)
+        fit = refine_poles(omega, H, variance, lam[1:], lam[:1], max_iterations=0)
+        stats.append(residue_wald(fit)[0])
+    assert abs(np.mean(stats) - 6.0) < 0.6, np.mean(stats)  # 2 E = 6, its std / sqrt(200) 0.24
+    omega, H, variance, lam = _strong_and_weak(20.0, 1)
+    fit = refine_poles(omega, H, variance, lam[1:], lam[:1], max_iterations=0)
+    assert 480 < residue_wald(fit)[0] < 960

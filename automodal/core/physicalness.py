@@ -33,7 +33,8 @@ noise (:func:`snr_feature`), which means the same on every file: about what fitt
 gives a spurious mode for noise, far above it for a mode of the data. Whatever the
 features, a cluster of one member or found by a minority of the replicates is never
 physical (:func:`vetoed`); the refinement may still make physical a companion the data need
-whose cluster a tenth of the replicates or more found, with a clear SNR
+whose cluster a tenth of the replicates or more found, with a clear SNR, and a weak mode
+whose cluster is not vetoed but scored below the line, where the likelihood holds its pole
 (:func:`automodal.core.summary.refine_physical_modes`).
 """
 
