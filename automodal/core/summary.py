@@ -498,11 +498,11 @@ def refine_physical_modes(
     ``min_physicalness`` whatever it is set to (as a companion's may). They are looked for
     only beside at least one physical mode: a band with none reports none (pure noise must
     give none, and the test's level is only approximate, :func:`_weak_modes`). A mode of
-    SNR 20-50 is
-    found by most replicates, but each re-fits noise comparable to it, so its members
-    scatter and its c-means score sat at 0.34-0.49 on the calibration files (family seed
-    1993, and 3001 of a family with 4-16 times its additive noise); this found 6 more of
-    their 920 clear modes and 3 more of 18 marginal ones (7), with no more false modes.
+    SNR 20-50 is found by most replicates, but each re-fits noise comparable to it, so its
+    members scatter and its c-means score sat at 0.34-0.49 on the calibration files
+    (family seed 1993, and 3001 of a family with 4-16 times its additive noise); this found
+    6 more of their 920 clear modes and 3 more of 18 marginal ones (7), with no more false
+    modes.
 
     The 95 % intervals of a refined mode are ``estimate +- 1.96 std`` from the Fisher
     information and the noise model (``estimator = "ml"``), and its shape is the fit's
@@ -616,7 +616,11 @@ def refine_physical_modes(
     weak_fit = (None if not weak else _weak_modes(
         omega, H, variance, fit, fixed, states[oscillatory[weak]], oscillatory.size, jobs))
     fit = _mapped(fit, pole_map)
-    weak_fit = None if weak_fit is None else _mapped(weak_fit, pole_map)
+    if weak_fit is not None:
+        weak_fit = _mapped(weak_fit, pole_map)
+        weak_stats = np.array(weak_fit.frequency_damping()).T  # (candidates, 4)
+        weak_shapes = residue_shapes(weak_fit.residues, variance, weak_fit.residue_variance,
+                                     weak_fit.entry_variance)
     f, f_std, z, z_std = fit.frequency_damping()
     ok = fit.refined
     shapes = residue_shapes(fit.residues, variance, fit.residue_variance, fit.entry_variance)
@@ -634,8 +638,9 @@ def refine_physical_modes(
             continue
         j = slot.get(m.reference_mode, -1)
         if j < 0 and m.reference_mode in weak and weak_fit is not None:
-            out.append(_weak_mode(m, weak_fit, weak.index(m.reference_mode), variance,
-                                  lines_hz, decay))
+            i = weak.index(m.reference_mode)
+            out.append(_weak_mode(m, bool(weak_fit.refined[i]), weak_stats[i],
+                                  weak_shapes[:, i], lines_hz, decay))
             continue
         if j < 0 or not ok[j] or (j < k and not m.physical):
             out.append(held(m))
@@ -734,31 +739,28 @@ def _weak_modes(
     held = stat > limit
     # a pole on another's resonance would split it: none within NEAR_POLE half-bandwidths
     # (the wider pole's) of a pole of the fit, or of a stronger weak pole held before it
-    taken = list(fit.poles)
+    taken = fit.poles
     for i in np.argsort(-stat, kind="stable"):
-        if held[i]:
-            lam = weak.poles[i]
-            near = [abs(p - lam) < NEAR_POLE * max(abs(p.real), abs(lam.real)) for p in taken]
-            held[i] = not any(near)
-            if held[i]:
-                taken.append(lam)
+        lam = weak.poles[i]
+        width = NEAR_POLE * np.maximum(np.abs(taken.real), abs(lam.real))
+        if held[i] and not np.any(np.abs(taken - lam) < width):
+            taken = np.append(taken, lam)
+        else:
+            held[i] = False
     return replace(weak, refined=held)
 
 
 def _weak_mode(
-    m: IdentifiedMode, weak: PoleRefinement, i: int, variance: np.ndarray,
+    m: IdentifiedMode, held: bool, stats: np.ndarray, shape: np.ndarray,
     lines_hz: np.ndarray, decay: float,
 ) -> IdentifiedMode:
-    """Weak candidate ``m`` (``i`` in :func:`_weak_modes`' fit), physical with the
-    refinement's statistics and shape where the data hold it and the lines resolve it
+    """Weak candidate ``m``, physical with its refinement's ``stats`` (frequency, its std,
+    damping, its std) and ``shape`` (:func:`automodal.core.refine.residue_shapes`) where
+    the data hold it (``held``, :func:`_weak_modes`) and the lines resolve it
     (:func:`resolved`), else as it was."""
-    if not weak.refined[i]:
+    f, f_std, z, z_std = (float(x) for x in stats)
+    if not held or not resolved(f, z, lines_hz, decay):
         return m
-    f, f_std, z, z_std = (float(x[i]) for x in weak.frequency_damping())
-    if not resolved(f, z, lines_hz, decay):
-        return m
-    shape = residue_shapes(weak.residues[[i]], variance, weak.residue_variance[[i]],
-                           weak.entry_variance[[i]])[:, 0]
     return replace(m, physical=True, **_ml_statistics(f, f_std, z, z_std),
                    **_fit_shape(m, shape))
 
