@@ -218,6 +218,21 @@ def test_physicalness_bars(report):
     assert any(list(line.get_ydata()) == [0.5, 0.5] for line in ax.get_lines())
 
 
+def test_physicalness_legend_counts_physical_modes_below_the_threshold(report):
+    """A physical mode below the threshold (a companion or weak mode the refinement's
+    likelihood tests hold) is counted in the threshold's legend; none, no count."""
+    def threshold_label(r):
+        (ax,) = plots.physicalness_bars(r).axes
+        return [t for t in ax.get_legend_handles_labels()[1] if t.startswith("threshold")][0]
+
+    assert threshold_label(report) == "threshold 0.5"
+    weak = copy.deepcopy(report)
+    phys = [m for m in weak["modes"] if m["physical"]]
+    phys[0]["physicalness"] = 0.4
+    assert threshold_label(weak) == (
+        "threshold 0.5 (1 physical below it: the refinement's likelihood tests)")
+
+
 def test_mode_shapes_as_bars_and_on_the_geometry(report):
     no_xyz = copy.deepcopy(report)
     no_xyz["input"]["output_xyz"] = None

@@ -386,8 +386,10 @@ def physicalness_bars(
     -------
     Figure or SubFigure
         One axes: bars coloured physical or not (``gid="physical"`` and
-        ``"not-physical"``), the decision threshold as a dashed line, and the 95 %
-        frequency interval of each cluster as a horizontal error bar at the top of its bar.
+        ``"not-physical"``), the decision threshold as a dashed line (its legend counting
+        the physical modes below it, which the refinement's likelihood tests hold), and the
+        95 % frequency interval of each cluster as a horizontal error bar at the top of its
+        bar.
     """
     report = Report.coerce(report)
     fig = _canvas(fig, (10.0, 3.5))
@@ -405,7 +407,11 @@ def physicalness_bars(
                gid=label.replace(" ", "-"))
         ax.errorbar(f, p, xerr=_ci_halfwidths(group, f), fmt="o", ms=2.5, color=color,
                     elinewidth=1.0, capsize=2, gid=f"ci-{label.replace(' ', '-')}")
-    ax.axhline(threshold, color="tab:red", ls="--", lw=1.0, label=f"threshold {threshold:g}")
+    # companions and weak modes the refinement's likelihood tests hold are physical below
+    # the threshold (docs/report.md, `physical`): the legend says how many
+    below = sum(1 for m in modes if m.physical and (m.physicalness or 0.0) < threshold)
+    ax.axhline(threshold, color="tab:red", ls="--", lw=1.0, label=f"threshold {threshold:g}" + (
+        f" ({below} physical below it: the refinement's likelihood tests)" if below else ""))
     ax.set_xlim(lo, hi)
     ax.set_ylim(-0.04, 1.08)  # clusters of physicalness 0 stay visible as dots
     ax.axhline(0.0, color="0.6", lw=0.5, zorder=0)
