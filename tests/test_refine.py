@@ -1066,6 +1066,39 @@ def test_both_modes_of_a_repeated_pair_are_physical_at_the_shared_pole(
     assert lo <= 0.005 <= hi
 
 
+@pytest.mark.parametrize("n_inputs, gap, occurrence, second", [
+    (2, 0.002, 0.55, True), (1, 0.002, 0.55, False), (2, 0.08, 0.55, False),
+    (2, 0.002, 0.05, False)])
+def test_a_companion_repeating_a_physical_mode_is_the_pairs_second_mode(
+        n_inputs, gap, occurrence, second):
+    """A repeated pair whose second cluster the c-means left below the line is a companion
+    of the first: when the pair test finds it repeating the first's resonance (one pole, a
+    residue of two modes: two inputs), it is physical at the first's refined pole with its
+    own shape (weak-noise seed 3051 f_07, a 4 x 2 grid with a pair at 17.43 Hz, its second
+    cluster at physicalness 0.46). Not with one input (a rank-one residue), not when the
+    replicates resolved the two frequencies (two poles), and not when a companion could
+    never be physical (found by under a tenth of the replicates)."""
+    from automodal.core.summary import refine_physical_modes
+
+    omega, H, variance, lam, start = _repeated_pair(n_inputs, noise=0.2)
+    states = np.concatenate([start, lam[2:], start.conj(), lam[2:].conj()])
+    modes = [_mode(0, True, 10.0),
+             _mode(1, False, 10.0 + gap, occurrence=occurrence,
+                   members=int(100 * occurrence)),
+             _mode(2, True, 11.0)]
+    out = refine_physical_modes(modes, states, np.array([0, 1, 2]), omega, H, variance)
+    assert out[0].physical and out[0].estimator == "ml"
+    assert out[1].physical == second
+    if second:
+        assert out[1].estimator == "ml"
+        assert out[1].frequency_hz == out[0].frequency_hz
+        assert out[1].frequency_ci95_hz == out[0].frequency_ci95_hz
+        np.testing.assert_array_equal(out[1].mode_shape, modes[1].mode_shape)
+    else:
+        assert out[1].estimator == "bootstrap"
+        assert out[1].frequency_hz == modes[1].frequency_hz
+
+
 def test_poles_brought_together_from_two_resonances_repeat_none():
     """A repeated pair's two poles that started on two resonances (further apart than the
     pair test's reach) are a mode and a duplicate: the refinement carried one there."""
@@ -1249,14 +1282,17 @@ def test_a_weak_candidate_where_the_data_hold_no_mode_stays_not_physical():
 
 @pytest.mark.parametrize("candidate, n_bootstrap", [
     (dict(physicalness=0.0), 100),  # vetoed in the clustering
-    (dict(members=49, occurrence=0.49), 100),  # a minority of the replicates
+    (dict(physicalness=0.0, members=49, occurrence=0.49, snr=1.4), 100),  # a minority
+    # without the SNR of a clearly physical mode
+    (dict(physicalness=0.0, members=9, occurrence=0.09), 100),  # under a tenth of them
     (dict(members=40, occurrence=0.8), 100),  # its own rank a minority (two ranks)
     (dict(snr=None), 100),  # no noise model's SNR feature
     ({}, None),  # the replicates' count not given: no weak modes looked for
 ])
 def test_a_weak_candidate_needs_a_majority_and_no_veto(candidate, n_bootstrap):
-    """Only a cluster no rule vetoed, whose own rank a majority found, is a candidate: the
-    others stay non-physical whatever the data hold."""
+    """Only a cluster no rule vetoed, whose own rank a majority found, or one a minority
+    found that a companion could be physical with, is a candidate: the others stay
+    non-physical whatever the data hold."""
     from automodal.core.summary import refine_physical_modes
 
     omega, H, variance, lam = _strong_and_weak(20.0, 1)
@@ -1265,6 +1301,25 @@ def test_a_weak_candidate_needs_a_majority_and_no_veto(candidate, n_bootstrap):
     out = refine_physical_modes(modes, states, np.array([0, 1]), omega, H, variance,
                                 n_bootstrap=n_bootstrap)
     assert [m.physical for m in out] == [True, False]
+
+
+@pytest.mark.parametrize("members", [30, 49])
+def test_a_weak_candidate_a_minority_found_is_physical_where_the_data_hold_it(members):
+    """A cluster a minority of the replicates found (30 or 49 of 100, so vetoed by the
+    majority rule: physicalness 0) with the SNR feature of a clearly physical mode is a
+    candidate as a companion would be (weak-noise seed 3053 f_08, a 29 x 3 dense grid whose
+    weak modes at SNR 30-60 were found by 30-40 % of the replicates): the data hold its
+    mode, so it is physical with the refinement's statistics."""
+    from automodal.core.summary import refine_physical_modes
+
+    omega, H, variance, lam = _strong_and_weak(20.0, 1)
+    states = np.concatenate([lam * (1 + 1e-3), np.conj(lam * (1 + 1e-3))])
+    modes = [_mode(0, True, 10.0),
+             _weak_candidate(physicalness=0.0, members=members, occurrence=members / 100)]
+    out = refine_physical_modes(modes, states, np.array([0, 1]), omega, H, variance,
+                                n_bootstrap=100)
+    assert out[1].physical and out[1].estimator == "ml"
+    assert abs(out[1].frequency_hz - 20.0) < 3 * out[1].frequency_std_hz
 
 
 def test_residue_wald_is_chi_square_on_noise_and_grows_with_the_mode():

@@ -404,6 +404,36 @@ the difference (the bootstrap's, ``sqrt(s_a^2 + s_b^2)``) are two frequencies: t
 replicates resolved them, at the level of the reported 95 % intervals."""
 
 
+def _repeated_companions(
+    modes: list[IdentifiedMode], repeating: dict[int, int], oscillatory: np.ndarray,
+    chosen: list[int], by_reference: dict[int, IdentifiedMode], owners: Counter,
+    gone: set[int],
+) -> dict[int, int]:
+    """The reference modes of the companions that are the second mode of a repeated pair,
+    each with its first's reference mode.
+
+    ``repeating`` holds, by state, the companions :func:`automodal.core.refine.pair_verdicts`
+    found repeating a physical mode's resonance (one pole fits both, but not with one mode's
+    rank-one residue, where the model fits the data to the noise), and that mode's index in
+    ``chosen``. Such a companion's cluster is the pair's second mode when it is its reference
+    mode's only cluster (``owners``), is not vetoed as a companion (:func:`_companion_vetoed`),
+    the replicates did not resolve its frequency from its first's (:func:`_resolved_pairs`:
+    two resolved frequencies are two poles, not one pole's two modes), and its first is
+    still a mode of its own pole (not in ``gone``: the split resonances and the pairs'
+    second modes)."""
+    by_state = {int(oscillatory[m.reference_mode]): m for m in modes
+                if m.reference_mode >= 0 and owners[m.reference_mode] == 1}
+    out = {}
+    for state, j in repeating.items():
+        m = by_state.get(state)
+        first = chosen[j]
+        if m is None or m.physical or first in gone or _companion_vetoed(m):
+            continue
+        if not _resolved_pairs([m, by_reference[first]])[0, 1]:
+            out[int(m.reference_mode)] = int(first)
+    return out
+
+
 def _resolved_pairs(modes: list[IdentifiedMode]) -> np.ndarray:
     """``(m, m)``: which pairs of ``modes`` the replicates resolved as two frequencies
     (:data:`RESOLVED_Z`), from their bootstrap statistics; a pair with an undefined
@@ -489,9 +519,16 @@ def refine_physical_modes(
     With one input or one output, of physical modes closer than a line spacing only the
     strongest stays physical (:func:`one_mode_per_line`).
 
+    A companion the test before the fit finds repeating a physical mode's resonance (one
+    pole fits both, but not with one mode's rank-one residue) leaves the fit, and its
+    cluster is that repeated pair's second mode, physical with the first's refined
+    statistics and its own shape, where a companion could be physical with it
+    (:func:`_repeated_companions`).
+
     With ``n_bootstrap``, a weak mode may be physical too: a cluster the c-means scored below
-    the line but no rule vetoed, its own rank found by a majority of the replicates
-    (:func:`_weak_candidates`), is refined beside the refined modes and is physical where
+    the line but no rule vetoed, its own rank found by a majority of the replicates, or one
+    a minority found that a companion could be physical with (:func:`_weak_candidates`), is
+    refined beside the refined modes and is physical where
     the data hold its pole (:func:`_weak_modes`: the Wald test of its residues against the
     noise model, at the familywise 1 % level over the reference model's modes) and the
     lines resolve it; its physicalness stays the c-means score, which may be below
@@ -569,12 +606,17 @@ def refine_physical_modes(
     k = len(chosen)
     free = np.concatenate([states[chosen_states], states[companions]])
     needed = np.ones(free.size, bool)
+    # companions that repeat a physical mode's resonance, by their state: that mode's
+    # index in ``chosen``
+    repeating: dict[int, int] = {}
     if companions.size:  # the companions the data do not need leave before the fit
         expendable = np.arange(free.size) >= k
         # a companion that repeats a mode's resonance leaves too: the mode's residue
         # stands for both
         v = pair_verdicts(omega, H, variance, free, fixed, expendable, jobs)
         needed = ~((v.duplicate | (v.repeats >= 0)) & expendable)
+        for i in np.flatnonzero((v.repeats[k:] >= 0) & (v.repeats[k:] < k)):
+            repeating[int(companions[i])] = int(v.repeats[k + i])
         free = free[needed]
     fit = refine_poles(omega, H, variance, free, fixed, jobs=jobs)
     kept = companions[needed[k:]]
@@ -631,12 +673,25 @@ def refine_physical_modes(
         ref_mode = np.flatnonzero(oscillatory == kept[c])
         if ref_mode.size and owners[int(ref_mode[0])] == 1:
             slot[int(ref_mode[0])] = k + int(c)
+    # a companion that repeats a refined mode's resonance is that pair's second mode
+    seconds = _repeated_companions(modes, repeating, oscillatory, chosen, by_reference,
+                                   owners, split | shared)
     out = []
     for m in modes:
         if m.physical and m.reference_mode in split:  # the data need no second pole there
             out.append(_not_physical(m))
             continue
         j = slot.get(m.reference_mode, -1)
+        if j < 0 and m.reference_mode in seconds:
+            # the second mode of a repeated pair the clustering kept apart from its first:
+            # the pole is the first's, the shape its cluster's own
+            j = slot[seconds[m.reference_mode]]
+            if ok[j]:
+                out.append(replace(m, physical=True, **_ml_statistics(f[j], f_std[j], z[j],
+                                                                      z_std[j])))
+            else:
+                out.append(held(m))
+            continue
         if j < 0 and m.reference_mode in weak and weak_fit is not None:
             i = weak.index(m.reference_mode)
             out.append(_weak_mode(m, bool(weak_fit.refined[i]), weak_stats[i],
@@ -686,18 +741,25 @@ def _weak_candidates(
 ) -> list[int]:
     """Reference modes of the clusters :func:`_weak_modes` may find modes in, sorted.
 
-    A candidate is not physical but was not vetoed either (physicalness above 0, so a
-    majority found its cluster with a clear SNR, ``physicalness.vetoed``), has a noise
-    model's SNR feature, a rank of its own that a majority of the ``n_bootstrap``
-    replicates found (a cluster of two ranks may owe its occurrence to one), a reference
-    mode no other cluster shares (``owners``) and a state not already in the fit
-    (``in_fit``: the physical modes' and their companions')."""
+    A candidate is not physical, has a noise model's SNR feature, a reference mode no other
+    cluster shares (``owners``) and a state not already in the fit (``in_fit``: the
+    physical modes' and their companions'), and either was not vetoed (physicalness above
+    0, so a majority found its cluster with a detectable SNR, ``physicalness.vetoed``) with
+    a rank of its own that a majority of the ``n_bootstrap`` replicates found (a cluster of
+    two ranks may owe its occurrence to one), or was found by a minority of them that a
+    companion may be physical with (:func:`_companion_vetoed`: at least a tenth, and the SNR
+    of a clearly physical mode)."""
     out = []
     for m in modes:
-        if (m.physical or m.physicalness <= 0.0 or m.reference_mode < 0
+        if (m.physical or m.reference_mode < 0
                 or physicalness.SNR_FEATURE_NAME not in m.features
-                or m.n_members < physicalness.MAJORITY * n_bootstrap
                 or owners[m.reference_mode] != 1):
+            continue
+        minority = m.features.get("occurrence", 0.0) < physicalness.MAJORITY
+        if minority:
+            if _companion_vetoed(m):
+                continue
+        elif m.physicalness <= 0.0 or m.n_members < physicalness.MAJORITY * n_bootstrap:
             continue
         if not in_fit[int(oscillatory[m.reference_mode])]:
             out.append(int(m.reference_mode))
