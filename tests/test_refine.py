@@ -1075,9 +1075,10 @@ def test_a_companion_repeating_a_physical_mode_is_the_pairs_second_mode(
     of the first: when the pair test finds it repeating the first's resonance (one pole, a
     residue of two modes: two inputs), it is physical at the first's refined pole with its
     own shape (weak-noise seed 3051 f_07, a 4 x 2 grid with a pair at 17.43 Hz, its second
-    cluster at physicalness 0.46). Not with one input (a rank-one residue), not when the
-    replicates resolved the two frequencies (two poles), and not when a companion could
-    never be physical (found by under a tenth of the replicates)."""
+    cluster at physicalness 0.46, found by 55 % of the replicates). Not with one input (a
+    rank-one residue: the pair test finds no repeat), not when the replicates resolved the
+    two frequencies (two poles), and not when a companion could never be physical (found by
+    under a tenth of the replicates)."""
     from automodal.core.summary import refine_physical_modes
 
     omega, H, variance, lam, start = _repeated_pair(n_inputs, noise=0.2)
@@ -1097,6 +1098,54 @@ def test_a_companion_repeating_a_physical_mode_is_the_pairs_second_mode(
     else:
         assert out[1].estimator == "bootstrap"
         assert out[1].frequency_hz == modes[1].frequency_hz
+
+
+def _pair_and_companions(noise: float, seed: int, extra: float, modes: list):
+    """:func:`_repeated_pair` (two inputs) with the reference model's modes at its two
+    starting poles, a third pole ``extra`` half-bandwidths off the pair's first mode, and the
+    third mode at 11 Hz; ``modes`` refined against them."""
+    from automodal.core.summary import refine_physical_modes
+
+    omega, H, variance, lam, start = _repeated_pair(2, noise=noise, seed=seed)
+    osc = np.array([start[0], start[1], lam[0] + 1j * extra * abs(lam[0].real), lam[2]])
+    return refine_physical_modes(modes, np.concatenate([osc, osc.conj()]),
+                                 np.arange(osc.size), omega, H, variance)
+
+
+def _near_pair(out) -> int:
+    return sum(m.physical and abs(m.frequency_hz - 10.0) < 0.05 for m in out)
+
+
+@pytest.mark.parametrize("noise, seed, extra, second", [
+    (0.2, 11, -0.4, 0.55),  # two companions repeating one mode
+    (0.2, 12, 0.2, None),  # a companion repeating the stronger of a shared pair
+    (0.05, 11, 0.2, None),  # a companion repeating one of the pair's two refined poles
+])
+def test_a_companion_never_makes_a_third_mode_of_a_repeated_pair(noise, seed, extra, second):
+    """With two inputs a pole's residue holds two modes' directions: a true pair whose
+    first mode already has its second (a second companion, the other physical mode sharing
+    its pole, or refined on a pole of its own beside it) takes no further companion as a
+    mode, so at most two physical modes stand at the pair."""
+    first = _mode(0, True, 10.0)
+    if second is None:
+        modes = [first, _mode(1, True, 10.002),
+                 _mode(2, False, 10.001, occurrence=0.55, members=55)]
+    else:
+        modes = [first, _mode(1, False, 10.002, occurrence=second, members=55),
+                 _mode(2, False, 9.998, occurrence=second, members=55)]
+    out = _pair_and_companions(noise, seed, extra, modes + [_mode(3, True, 11.0)])
+    assert _near_pair(out) <= 2
+
+
+def test_a_companion_whose_first_left_the_fit_stays_not_physical():
+    """The pair's first (a duplicate the replicates resolved from its neighbour, carried
+    off: its pole leaves the fit) has no pole a second mode could share: its repeating
+    companion stays non-physical with its own statistics, not the last pole's (11 Hz)."""
+    modes = [_mode(0, True, 10.0), _mode(1, True, 10.05),
+             _mode(2, False, 10.001, occurrence=0.55, members=55), _mode(3, True, 11.0)]
+    out = {m.reference_mode: m for m in _pair_and_companions(0.2, 11, -0.3, modes)}
+    assert not out[2].physical
+    assert out[2].frequency_hz == pytest.approx(10.001)
 
 
 def test_poles_brought_together_from_two_resonances_repeat_none():
@@ -1218,23 +1267,26 @@ def test_a_duplicate_resolved_from_its_nearest_pole_was_carried_off():
     assert _carried_off(poles, duplicate, resolved).tolist() == [False, True, False, False]
 
 
-def _strong_and_weak(weak_snr: float, seed: int):
+def _strong_and_weak(weak_snr: float, seed: int, n_inputs: int = 1):
     """A strong mode at 10 Hz and a weak one at 20 Hz of matched-filter SNR ``weak_snr``
-    (0: no weak mode in the data), 3 outputs x 1 input, 1000 lines, additive noise of 1 %
-    of the strong mode's RMS. Returns the lines, FRF, noise variance and both poles."""
+    (0: no weak mode in the data), 3 outputs x ``n_inputs`` inputs (1 or 2), 1000 lines,
+    additive noise of 1 % of the strong mode's RMS. Returns the lines, FRF, noise variance
+    and both poles."""
     rng = np.random.default_rng(seed)
     lam = 2 * np.pi * np.array([10.0, 20.0]) * (-0.01 + 1j * np.sqrt(1 - 0.01**2))
     omega = 2 * np.pi * np.linspace(5, 25, 1000)
     s = 1j * omega
     shapes = np.array([[1.0, 0.5, -0.3], [0.4, -1.0, 0.7]])
+    inputs = np.array([[1.0, 0.6], [1.0, -0.8]])[:, :n_inputs]
 
     def term(r):
-        return np.einsum("i,f->fi", shapes[r], 1 / (s - lam[r]) + 1 / (s - lam[r].conj()))
+        return np.einsum("i,j,f->fij", shapes[r], inputs[r],
+                         1 / (s - lam[r]) + 1 / (s - lam[r].conj()))
 
     strong, weak = term(0), term(1)
-    level = 0.01 * np.sqrt(np.mean(np.abs(strong) ** 2))
+    level = 0.01 * np.sqrt(np.mean(np.abs(strong[:, :, 0]) ** 2))
     weak *= weak_snr / np.sqrt(np.sum(np.abs(weak) ** 2) / level**2)
-    H = (strong + weak)[:, :, None] + level * sim.complex_gaussian((1000, 3, 1), 1.0, rng)
+    H = strong + weak + level * sim.complex_gaussian((1000, 3, n_inputs), 1.0, rng)
     return omega, H, np.full(H.shape, level**2), lam
 
 
@@ -1289,7 +1341,7 @@ def test_a_weak_candidate_where_the_data_hold_no_mode_stays_not_physical():
     (dict(snr=None), 100),  # no noise model's SNR feature
     ({}, None),  # the replicates' count not given: no weak modes looked for
 ])
-def test_a_weak_candidate_needs_a_majority_and_no_veto(candidate, n_bootstrap):
+def test_a_weak_candidate_needs_a_majority_or_a_companions_terms(candidate, n_bootstrap):
     """Only a cluster no rule vetoed, whose own rank a majority found, or one a minority
     found that a companion could be physical with, is a candidate: the others stay
     non-physical whatever the data hold."""
@@ -1303,23 +1355,37 @@ def test_a_weak_candidate_needs_a_majority_and_no_veto(candidate, n_bootstrap):
     assert [m.physical for m in out] == [True, False]
 
 
-@pytest.mark.parametrize("members", [30, 49])
-def test_a_weak_candidate_a_minority_found_is_physical_where_the_data_hold_it(members):
-    """A cluster a minority of the replicates found (30 or 49 of 100, so vetoed by the
-    majority rule: physicalness 0) with the SNR feature of a clearly physical mode is a
-    candidate as a companion would be (weak-noise seed 3053 f_08, a 29 x 3 dense grid whose
-    weak modes at SNR 30-60 were found by 30-40 % of the replicates): the data hold its
-    mode, so it is physical with the refinement's statistics."""
+@pytest.mark.parametrize("members, occurrence, n_inputs, damping, physical", [
+    (30, 0.30, 2, 0.005, True), (49, 0.49, 2, 0.005, True),
+    (30, 0.30, 1, 0.005, False),  # one input: no minority candidate, as no companion
+    (2, 0.45, 2, 0.005, False),  # its own rank found by 2 of 100 (the cluster's by 45 %)
+    (30, 0.30, 2, -0.005, False),  # an unstable median pole
+])
+def test_a_weak_candidate_a_minority_found_is_physical_where_the_data_hold_it(
+        members, occurrence, n_inputs, damping, physical):
+    """A cluster a minority of the replicates found (so vetoed by the majority rule:
+    physicalness 0) with the SNR feature of a clearly physical mode is a candidate as a
+    companion would be (weak-noise seed 3053 f_08, a 29 x 3 dense grid whose weak modes at
+    SNR 30-60 were found by 30-40 % of the replicates): with two inputs the data hold its
+    mode, so it is physical with the refinement's statistics. Not with one input (as a
+    companion is not promoted), not when its own rank was found by under a tenth of the
+    replicates, and not with an unstable median pole."""
+    from dataclasses import replace
+
     from automodal.core.summary import refine_physical_modes
 
-    omega, H, variance, lam = _strong_and_weak(20.0, 1)
+    omega, H, variance, lam = _strong_and_weak(20.0, 1, n_inputs)
     states = np.concatenate([lam * (1 + 1e-3), np.conj(lam * (1 + 1e-3))])
-    modes = [_mode(0, True, 10.0),
-             _weak_candidate(physicalness=0.0, members=members, occurrence=members / 100)]
+    weak = replace(_weak_candidate(physicalness=0.0, members=members, occurrence=occurrence),
+                   damping_ratio=damping)
+    modes = [_mode(0, True, 10.0), weak]
     out = refine_physical_modes(modes, states, np.array([0, 1]), omega, H, variance,
                                 n_bootstrap=100)
-    assert out[1].physical and out[1].estimator == "ml"
-    assert abs(out[1].frequency_hz - 20.0) < 3 * out[1].frequency_std_hz
+    assert out[0].physical
+    assert out[1].physical == physical
+    if physical:
+        assert out[1].estimator == "ml"
+        assert abs(out[1].frequency_hz - 20.0) < 3 * out[1].frequency_std_hz
 
 
 def test_residue_wald_is_chi_square_on_noise_and_grows_with_the_mode():

@@ -407,8 +407,9 @@ def physicalness_bars(
                gid=label.replace(" ", "-"))
         ax.errorbar(f, p, xerr=_ci_halfwidths(group, f), fmt="o", ms=2.5, color=color,
                     elinewidth=1.0, capsize=2, gid=f"ci-{label.replace(' ', '-')}")
-    # companions and weak modes the refinement's likelihood tests hold are physical below
-    # the threshold (docs/report.md, `physical`): the legend says how many
+    # companions, repeated pairs' second modes and weak modes the refinement's likelihood
+    # tests hold are physical below the threshold (docs/report.md, `physical`): the legend
+    # says how many
     below = sum(1 for m in modes if m.physical and (m.physicalness or 0.0) < threshold)
     ax.axhline(threshold, color="tab:red", ls="--", lw=1.0, label=f"threshold {threshold:g}" + (
         f" ({below} physical below it: the refinement's likelihood tests)" if below else ""))

@@ -91,9 +91,10 @@ and is still a mode; on the noise path :func:`vetoed` applies the majority rule.
 
 MAJORITY = 0.5
 """A cluster found by fewer than this share of the replicates (occurrence) is never
-physical on its features: a mode of the data must be seen by most resamples of it (a
-companion the refinement's ratio test needs is the exception, with :data:`SPORADIC` and a
-clear SNR, :func:`automodal.core.summary.refine_physical_modes`)."""
+physical on its features: a mode of the data must be seen by most resamples of it. The
+refinement's likelihood tests may still hold one found by at least :data:`SPORADIC` with a
+clear SNR (a needed companion, a repeated pair's second mode, a weak mode:
+:func:`automodal.core.summary.refine_physical_modes`)."""
 
 
 def snr_feature(snr2: float, params: int) -> float:

@@ -19,6 +19,7 @@ from automodal.core.matching import mode_numbers
 from automodal.core.modal import ModeSet, mpc, normalise_shapes, unit_max_shapes
 from automodal.core.pole_map import PoleMap
 from automodal.core.refine import (
+    DUPLICATE_HALF_BANDWIDTHS,
     PoleRefinement,
     pair_verdicts,
     refine_poles,
@@ -419,19 +420,26 @@ def _repeated_companions(
     mode's only cluster (``owners``), is not vetoed as a companion (:func:`_companion_vetoed`),
     the replicates did not resolve its frequency from its first's (:func:`_resolved_pairs`:
     two resolved frequencies are two poles, not one pole's two modes), and its first is
-    still a mode of its own pole (not in ``gone``: the split resonances and the pairs'
-    second modes)."""
+    a mode alone on its pole (not in ``gone``: the split resonances, the modes whose pole
+    left the fit or was not refined, and those with another physical mode within the pair
+    test's reach, a repeated pair's two modes among them). A first takes one second at
+    most, the cluster most replicates found: a pole's residue holds two modes' directions
+    here, and with every companion but the first to go tested against a pole whose residue
+    already holds the pair, any further companion of a true pair repeats it too."""
     by_state = {int(oscillatory[m.reference_mode]): m for m in modes
                 if m.reference_mode >= 0 and owners[m.reference_mode] == 1}
-    out = {}
-    for state, j in repeating.items():
+    best: dict[int, IdentifiedMode] = {}
+    for state, j in sorted(repeating.items()):
         m = by_state.get(state)
-        first = chosen[j]
+        first = int(chosen[j])
         if m is None or m.physical or first in gone or _companion_vetoed(m):
             continue
-        if not _resolved_pairs([m, by_reference[first]])[0, 1]:
-            out[int(m.reference_mode)] = int(first)
-    return out
+        if _resolved_pairs([m, by_reference[first]])[0, 1]:
+            continue
+        if first not in best or (m.features.get("occurrence", 0.0)
+                                 > best[first].features.get("occurrence", 0.0)):
+            best[first] = m
+    return {int(m.reference_mode): first for first, m in best.items()}
 
 
 def _resolved_pairs(modes: list[IdentifiedMode]) -> np.ndarray:
@@ -654,7 +662,8 @@ def refine_physical_modes(
     owners = Counter(m.reference_mode for m in modes)
     # the clusters below the c-means line whose modes the likelihood may still hold
     weak = ([] if n_bootstrap is None
-            else _weak_candidates(modes, owners, oscillatory, near | used, n_bootstrap))
+            else _weak_candidates(modes, owners, oscillatory, near | used, n_bootstrap,
+                                  min(H.shape[1:]) >= 2))
     weak_fit = (None if not weak else _weak_modes(
         omega, H, variance, fit, fixed, states[oscillatory[weak]], oscillatory.size, jobs))
     fit = _mapped(fit, pole_map)
@@ -673,9 +682,18 @@ def refine_physical_modes(
         ref_mode = np.flatnonzero(oscillatory == kept[c])
         if ref_mode.size and owners[int(ref_mode[0])] == 1:
             slot[int(ref_mode[0])] = k + int(c)
-    # a companion that repeats a refined mode's resonance is that pair's second mode
+    # a companion that repeats a refined mode's resonance is that pair's second mode, where
+    # the mode is alone on its pole: not split, refined and still in the fit, and with no
+    # other physical mode within the pair test's reach (a repeated pair's two among them)
+    starts = states[chosen_states]
+    reach = DUPLICATE_HALF_BANDWIDTHS * np.maximum(np.abs(starts.real)[:, None],
+                                                   np.abs(starts.real)[None, :])
+    beside = np.abs(starts[:, None] - starts[None, :]) < reach
+    np.fill_diagonal(beside, False)
+    crowded = {int(chosen[j]) for j in np.flatnonzero(beside.any(axis=1))}
+    unrefined = {int(c) for c in chosen if slot[int(c)] < 0 or not ok[slot[int(c)]]}
     seconds = _repeated_companions(modes, repeating, oscillatory, chosen, by_reference,
-                                   owners, split | shared)
+                                   owners, split | shared | crowded | unrefined)
     out = []
     for m in modes:
         if m.physical and m.reference_mode in split:  # the data need no second pole there
@@ -686,7 +704,7 @@ def refine_physical_modes(
             # the second mode of a repeated pair the clustering kept apart from its first:
             # the pole is the first's, the shape its cluster's own
             j = slot[seconds[m.reference_mode]]
-            if ok[j]:
+            if j >= 0 and ok[j]:  # the first's pole left the fit or was not refined: held
                 out.append(replace(m, physical=True, **_ml_statistics(f[j], f_std[j], z[j],
                                                                       z_std[j])))
             else:
@@ -737,7 +755,7 @@ def _mapped(fit: PoleRefinement, pole_map: PoleMap | None) -> PoleRefinement:
 
 def _weak_candidates(
     modes: list[IdentifiedMode], owners: Counter, oscillatory: np.ndarray, in_fit: np.ndarray,
-    n_bootstrap: int,
+    n_bootstrap: int, two_way: bool = True,
 ) -> list[int]:
     """Reference modes of the clusters :func:`_weak_modes` may find modes in, sorted.
 
@@ -746,9 +764,13 @@ def _weak_candidates(
     physical modes' and their companions'), and either was not vetoed (physicalness above
     0, so a majority found its cluster with a detectable SNR, ``physicalness.vetoed``) with
     a rank of its own that a majority of the ``n_bootstrap`` replicates found (a cluster of
-    two ranks may owe its occurrence to one), or was found by a minority of them that a
-    companion may be physical with (:func:`_companion_vetoed`: at least a tenth, and the SNR
-    of a clearly physical mode)."""
+    two ranks may owe its occurrence to one), or, with at least two inputs and two outputs
+    (``two_way``), was found by a minority of them that a companion may be physical with
+    (:func:`_companion_vetoed`: more than one member, at least a tenth, and the SNR of a
+    clearly physical mode), its own rank found by at least a tenth too and its median pole
+    stable. (A companion is promoted only with two inputs and two outputs; with one, the
+    one false mode the minority added on the measured seeds of session 49 was a cluster
+    between two modes one input cannot tell apart, its shape a mixture of theirs.)"""
     out = []
     for m in modes:
         if (m.physical or m.reference_mode < 0
@@ -757,7 +779,9 @@ def _weak_candidates(
             continue
         minority = m.features.get("occurrence", 0.0) < physicalness.MAJORITY
         if minority:
-            if _companion_vetoed(m):
+            if (not two_way or _companion_vetoed(m)
+                    or m.n_members < physicalness.SPORADIC * n_bootstrap
+                    or not m.damping_ratio > 0.0):
                 continue
         elif m.physicalness <= 0.0 or m.n_members < physicalness.MAJORITY * n_bootstrap:
             continue
