@@ -432,7 +432,7 @@ def _repeated_companions(
     for state, j in sorted(repeating.items()):
         m = by_state.get(state)
         first = int(chosen[j])
-        if m is None or m.physical or first in gone or _companion_vetoed(m):
+        if m is None or first in gone or _companion_vetoed(m):  # a companion: not physical
             continue
         if _resolved_pairs([m, by_reference[first]])[0, 1]:
             continue
@@ -700,15 +700,13 @@ def refine_physical_modes(
             out.append(_not_physical(m))
             continue
         j = slot.get(m.reference_mode, -1)
-        if j < 0 and m.reference_mode in seconds:
+        if m.reference_mode in seconds:
             # the second mode of a repeated pair the clustering kept apart from its first:
-            # the pole is the first's, the shape its cluster's own
+            # the pole is the first's (refined and in the fit, ``unrefined`` above), the
+            # shape its cluster's own
             j = slot[seconds[m.reference_mode]]
-            if j >= 0 and ok[j]:  # the first's pole left the fit or was not refined: held
-                out.append(replace(m, physical=True, **_ml_statistics(f[j], f_std[j], z[j],
-                                                                      z_std[j])))
-            else:
-                out.append(held(m))
+            out.append(replace(m, physical=True, **_ml_statistics(f[j], f_std[j], z[j],
+                                                                  z_std[j])))
             continue
         if j < 0 and m.reference_mode in weak and weak_fit is not None:
             i = weak.index(m.reference_mode)
