@@ -27,7 +27,9 @@ def cli(*args: object):
 # ------------------------------------------------------------------------------ imports
 
 HEAVY = ("automodal.app.batch", "automodal.app.monitoring", "scipy.stats", "scipy.ndimage",
-         "scipy.signal", "scipy.optimize", "matplotlib", "dask", "joblib", "pyuff")
+         "scipy.signal", "scipy.optimize", "matplotlib", "dask", "joblib", "pyuff",
+         # numpy's submodules that scipy's import executes unless the command defers them
+         "numpy.f2py.crackfortran", "numpy.testing._private.utils")
 
 
 def test_importing_the_command_line_loads_no_library():
@@ -59,6 +61,27 @@ def test_identify_of_one_file_imports_no_heavy_module():
                           timeout=120)
     assert done.returncode == 0, done.stderr
     assert done.stdout.strip() == "", f"imported: {done.stdout.strip()}"
+
+
+def test_deferred_numpy_modules_still_work_when_used():
+    """A deferred module is the real module on first use; one already imported, or absent
+    from numpy, is left alone."""
+    code = (
+        "import sys\n"
+        "import numpy.testing\n"
+        "from automodal.cli._startup import defer_unused_numpy_modules\n"
+        "done = defer_unused_numpy_modules(('numpy.f2py', 'numpy.testing', 'numpy.no_such'))\n"
+        "assert done == ['numpy.f2py'], done\n"
+        "import scipy.linalg\n"
+        "assert 'numpy.f2py.crackfortran' not in sys.modules\n"
+        "import numpy\n"
+        "assert callable(numpy.f2py.run_main)\n"
+        "from numpy.f2py import crackfortran\n"
+        "assert 'numpy.f2py.crackfortran' in sys.modules\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=60)
+    assert done.returncode == 0, done.stderr
 
 
 # ------------------------------------------------------------------------------ the table

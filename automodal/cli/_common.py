@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING
 
 import click
 
+from automodal.cli._startup import defer_unused_numpy_modules
 from automodal.errors import InputError
 from automodal.io.atomic import nearest_existing_folder
 
@@ -33,8 +34,11 @@ def exit_on_error(debug: bool = False) -> Iterator[None]:
     """Turn exceptions into one line on stderr and the exit statuses of ``docs/cli.md``.
 
     :class:`InputError` exits 2; any other exception exits 1. With ``debug`` the traceback
-    is printed too.
+    is printed too. Every command's body runs inside it, after click has handled ``--help``,
+    so it is also where numpy's submodules that no command uses are made to load on first
+    use (:mod:`automodal.cli._startup`), before the body's first import of scipy.
     """
+    defer_unused_numpy_modules()
     try:
         yield
     except InputError as exc:
