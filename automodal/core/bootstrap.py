@@ -87,11 +87,13 @@ def replicates_from_schur(
             if not subspace.gram_resolves(sv[i]):
                 O[i] = subspace.observability_from_l22(qr_fallback(i), n)[0]
                 paths[i] = "qr"
-    A, C = subspace.shift_invariance(O, ny, basis)
+    A, _ = subspace.shift_invariance(O, ny, basis)
     mu, V = np.linalg.eig(A)
     mu = mu.astype(complex, copy=False)
+    V = V.astype(complex, copy=False)
     k, n_states = mu.shape
-    psi = C @ V  # (k, ny, n): every shape of every replicate, normalised in one call
+    # (k, ny, n): every replicate's shapes, normalised in one call
+    psi = subspace.modal_outputs(O, mu, V, basis, ny, matrix=False)[0]
     if output_basis is not None:
         psi = output_basis @ psi
     n_out = psi.shape[1]
