@@ -397,6 +397,9 @@ def test_basis_at_the_lines_is_the_basis(kind):
     np.testing.assert_allclose(P, basis.values.T / basis.p0, rtol=0, atol=1e-9 * np.abs(P).max())
     far = subspace.basis_at(subspace.row_basis(z, 400, kind), np.array([50.0 + 0j, -3.0j]))
     assert np.all(np.isfinite(far)) and np.all(np.abs(far[:, -1]) > 0)
+    if kind == "monomial":  # the rescaling keeps every ratio
+        kept = np.abs(far[0, :-1]) > 1e-200
+        np.testing.assert_allclose(far[0, 1:][kept] / far[0, :-1][kept], 50.0, rtol=1e-12)
 
 
 def test_a_mode_beyond_the_band_keeps_its_shape_at_many_block_rows():
@@ -421,6 +424,10 @@ def test_a_mode_beyond_the_band_keeps_its_shape_at_many_block_rows():
         CV, C = subspace.modal_outputs(O, *eigen, basis, 2)
         np.testing.assert_allclose(np.abs(CV).sum(axis=0) > 0, True)
         np.testing.assert_allclose(CV, C @ eigen[1], atol=1e-10)
+        if q == 13:  # where the first block row holds every mode, the same vectors
+            same = np.sum(CV.conj() * (C_first @ eigen[1]), axis=0)
+            np.testing.assert_allclose(same.imag, 0.0, atol=1e-8 * np.abs(same).max())
+            assert np.all(same.real > 0)
         B, D = subspace.estimate_bd(z, H, A, C, eigen=eigen)
         fit = D[None] + subspace.modal_sum(CV, eigen[0], np.linalg.solve(eigen[1], B), z)
         assert np.linalg.norm(fit - H) < 1e-7 * np.linalg.norm(H), q

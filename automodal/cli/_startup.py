@@ -42,9 +42,12 @@ def defer_unused_numpy_modules(names: tuple[str, ...] = DEFERRED) -> list[str]:
 
     Notes
     -----
-    Only modules a run never touches are deferred: before CPython fixed issue 114763 (2024),
-    ``LazyLoader`` was not safe against two threads touching a module for the first time at
-    once, and Python 3.11 has no fix; the identification's worker threads touch neither.
+    Only modules a run never touches are deferred: ``LazyLoader`` is not safe against two
+    threads touching a module for the first time at once before CPython's fix of issue
+    114763 (3.12.3 and 3.13; 3.10, 3.11 and early 3.12 have the race), and no command's
+    worker threads touch either (``tests/test_cli_ux.py`` checks that an identify run, its
+    threads included, leaves both unexecuted). Anything that goes wrong while deferring a
+    module leaves it to load as usual: the deferral saves time, it must never stop a command.
     """
     deferred = []
     for name in names:
@@ -54,17 +57,18 @@ def defer_unused_numpy_modules(names: tuple[str, ...] = DEFERRED) -> list[str]:
         try:
             package = importlib.import_module(parent)
             spec = importlib.util.find_spec(name)
-        except ImportError:
+            if spec is None or spec.loader is None:
+                continue
+            loader = importlib.util.LazyLoader(spec.loader)  # TypeError: no exec_module
+            spec.loader = loader
+            module = importlib.util.module_from_spec(spec)
+            sys.modules[name] = module
+            loader.exec_module(module)
+            # as an import does; without it, numpy's module __getattr__ would import the
+            # name again and again
+            setattr(package, child, module)
+        except Exception:  # noqa: BLE001 - a deferral that fails is simply not made
+            sys.modules.pop(name, None)
             continue
-        if spec is None or spec.loader is None:
-            continue
-        loader = importlib.util.LazyLoader(spec.loader)
-        spec.loader = loader
-        module = importlib.util.module_from_spec(spec)
-        sys.modules[name] = module
-        loader.exec_module(module)
-        # as an import does; without it, numpy's module __getattr__ would import the name
-        # again and again
-        setattr(package, child, module)
         deferred.append(name)
     return deferred
