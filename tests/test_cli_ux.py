@@ -32,6 +32,12 @@ HEAVY = ("automodal.app.batch", "automodal.app.monitoring", "scipy.stats", "scip
          "numpy.f2py.crackfortran", "numpy.testing._private.utils")
 
 
+def _python(code: str, timeout: float) -> subprocess.CompletedProcess:
+    """``code`` run by a fresh interpreter (its imports its own), its output captured."""
+    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=timeout)
+
+
 def test_importing_the_command_line_loads_no_library():
     """``import automodal.cli`` (every command's ``--help``) and the ``identify`` command's
     module load none of the libraries: each command imports what it uses when it runs."""
@@ -39,8 +45,7 @@ def test_importing_the_command_line_loads_no_library():
              "threadpoolctl")
     code = ("import sys, automodal.cli, automodal.cli.identify_cmd\n"
             f"print(','.join(m for m in {heavy!r} if m in sys.modules))\n")
-    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                          timeout=60)
+    done = _python(code, 60)
     assert done.returncode == 0, done.stderr
     assert done.stdout.strip() == "", f"imported: {done.stdout.strip()}"
 
@@ -57,8 +62,7 @@ def test_identify_of_one_file_imports_no_heavy_module():
         "    assert exc.code == 0, exc.code\n"
         f"print(','.join(m for m in {HEAVY!r} if m in sys.modules))\n"
     )
-    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                          timeout=120)
+    done = _python(code, 120)
     assert done.returncode == 0, done.stderr
     assert done.stdout.strip() == "", f"imported: {done.stdout.strip()}"
 
@@ -79,8 +83,7 @@ def test_deferred_numpy_modules_still_work_when_used():
         "from numpy.f2py import crackfortran\n"
         "assert 'numpy.f2py.crackfortran' in sys.modules\n"
     )
-    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                          timeout=60)
+    done = _python(code, 60)
     assert done.returncode == 0, done.stderr
 
 

@@ -312,7 +312,7 @@ def test_stacked_replicates_equal_replicates_alone():
         # and the same modes as the reference route (eig of one model, modes_of_discrete)
         O, _ = subspace.observability_from_schur(S[b], n)
         A, _ = subspace.shift_invariance(O, 3, basis)
-        C = subspace.modal_outputs(O, *np.linalg.eig(A), basis, 3)[1]
+        C = subspace.output_matrix(O, *np.linalg.eig(A), basis, 3)[1]
         ref = modes_of_discrete(A, C, T)
         np.testing.assert_allclose(stacked[b].poles, ref.poles, rtol=1e-12)
         assert np.all(np.abs(np.sum(stacked[b].shapes.conj() * ref.shapes, axis=0)) > 1 - 1e-10)
@@ -406,7 +406,7 @@ def test_a_mode_beyond_the_band_keeps_its_shape_at_many_block_rows():
     """Two outputs, a 4-mass chain whose fourth mode lies just above the band: its column of
     ``O`` lies in the last block rows at many block rows, and read off the first one its
     shape was wrong (noise-free misfit 7e-4 at the true order with 91 block rows). Fitted
-    over every block row (``modal_outputs``), the model of the true order is exact."""
+    over every block row (``output_matrix``), the model of the true order is exact."""
     system = sim.damp(sim.chain(4), "rayleigh", zeta=0.01)
     fn = np.sort(sim.natural_frequencies_hz(system))
     freq = np.linspace(0.5 * fn[0], 0.5 * (fn[2] + fn[3]), 1500)
@@ -421,7 +421,7 @@ def test_a_mode_beyond_the_band_keeps_its_shape_at_many_block_rows():
         O = subspace.observability(basis, H, n)[0]
         A, C_first = subspace.shift_invariance(O, 2, basis)
         eigen = np.linalg.eig(A)
-        CV, C = subspace.modal_outputs(O, *eigen, basis, 2)
+        CV, C = subspace.output_matrix(O, *eigen, basis, 2)
         np.testing.assert_allclose(np.abs(CV).sum(axis=0) > 0, True)
         np.testing.assert_allclose(CV, C @ eigen[1], atol=1e-10)
         if q == 13:  # where the first block row holds every mode, the same vectors

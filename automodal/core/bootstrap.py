@@ -90,10 +90,9 @@ def replicates_from_schur(
     A, _ = subspace.shift_invariance(O, ny, basis)
     mu, V = np.linalg.eig(A)
     mu = mu.astype(complex, copy=False)
-    V = V.astype(complex, copy=False)
     k, n_states = mu.shape
     # (k, ny, n): every replicate's shapes, normalised in one call
-    psi = subspace.modal_outputs(O, mu, V, basis, ny, matrix=False)[0]
+    psi = subspace.modal_outputs(O, mu, V, basis, ny)
     if output_basis is not None:
         psi = output_basis @ psi
     n_out = psi.shape[1]

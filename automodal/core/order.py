@@ -197,7 +197,7 @@ def misfit_scan(
     def evaluate(n: int) -> tuple[float, float, tuple[int, np.ndarray, np.ndarray]]:
         A, _ = subspace.shift_invariance(O[:, :n], ny, basis)
         lam, V = np.linalg.eig(A)  # one eigendecomposition for B/D, the response, the poles
-        CV, C = subspace.modal_outputs(O[:, :n], lam, V, basis, ny)
+        CV, C = subspace.output_matrix(O[:, :n], lam, V, basis, ny)
         B, D = subspace.estimate_bd(z[sub], H[sub], A, C, weights=w_sub, eigen=(lam, V))
         Hm = D[None] + subspace.modal_sum(CV, lam, np.linalg.solve(V, B), z[sub])
         residual = np.nan if var_sub is None else whitened_residual(Hm, H[sub], var_sub)

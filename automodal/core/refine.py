@@ -118,6 +118,16 @@ DUPLICATE_HALF_BANDWIDTHS = 2.0
 (:func:`pair_verdicts`); it is also how far the refinement's neighbourhood reaches
 (:data:`automodal.core.summary.NEAR_POLE`)."""
 
+def within_reach(poles: np.ndarray) -> np.ndarray:
+    """``(m, m)``: which pairs of ``poles`` lie within :data:`DUPLICATE_HALF_BANDWIDTHS`
+    half-bandwidths (the larger of the two ``|Re p|``) of each other, each pole with
+    itself included where its damping is not zero."""
+    poles = np.asarray(poles, dtype=complex).ravel()
+    half = np.abs(poles.real)
+    return np.abs(poles[:, None] - poles[None, :]) < DUPLICATE_HALF_BANDWIDTHS * np.maximum(
+        half[:, None], half[None, :])
+
+
 SEPARABLE_TOLERANCE = 0.05
 """The noise model's covariance of the refined poles takes the noise variance's departure
 from its separable model (:func:`separable_ratio`) into account when the ratio leaves
@@ -1459,8 +1469,7 @@ def pair_verdicts(
     half = np.abs(poles.real)
     sep = np.abs(poles[:, None] - poles[None, :]) / np.maximum(half[:, None], half[None, :])
     start = poles if starts is None else np.asarray(starts, dtype=complex).ravel()
-    one_start = np.abs(start[:, None] - start[None, :]) < DUPLICATE_HALF_BANDWIDTHS * np.maximum(
-        np.abs(start.real)[:, None], np.abs(start.real)[None, :])
+    one_start = within_reach(start)
     two_frequencies = (np.zeros((m, m), bool) if resolved is None
                        else np.asarray(resolved, bool).reshape(m, m))
     pairs = [(sep[a, b], a, b) for a in range(m) for b in range(a + 1, m)

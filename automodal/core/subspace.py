@@ -997,12 +997,7 @@ def basis_at(basis: RowBasis, points: np.ndarray) -> np.ndarray:
     q = basis.q
     P = np.empty(points.shape + (q,), dtype=complex)
     P[..., 0] = 1.0
-    if basis.monomial:
-        for j in range(q - 1):
-            P[..., j + 1] = points * P[..., j]
-            _rescale(P, j + 1)
-        return P
-    for j in range(q - 1):
+    for j in range(q - 1):  # the monomials' shift makes this p_(j+1) = z p_j
         # an elementwise product summed along the last axis, not a matrix product: the same
         # operations for a point whatever the stack (a replicate's modes do not depend on
         # the batch it is computed in)
@@ -1022,11 +1017,9 @@ def _rescale(P: np.ndarray, j: int, limit: float = 1e100) -> None:
 
 
 def modal_outputs(
-    O: np.ndarray, mu: np.ndarray, V: np.ndarray, basis: RowBasis, ny: int,
-    matrix: bool = True,
-) -> tuple[np.ndarray, np.ndarray | None]:
-    """Each mode's output vector ``C v_a`` fitted over every block row, and the output
-    matrix ``C`` it implies.
+    O: np.ndarray, mu: np.ndarray, V: np.ndarray, basis: RowBasis, ny: int
+) -> np.ndarray:
+    """Each mode's output vector ``C v_a``, fitted over every block row.
 
     The block rows of ``O`` are ``C p_i(A)``, so for an eigenpair ``A v_a = mu_a v_a``
     the column ``O v_a`` is ``p(mu_a) kron (C v_a)`` with ``p = (p_0, .., p_(q-1))``.
@@ -1054,30 +1047,11 @@ def modal_outputs(
     basis : RowBasis
     ny : int
         Outputs.
-    matrix : bool
-        Whether to form ``C`` too (the replicates need only the modes' vectors).
 
     Returns
     -------
-    CV : ndarray, shape (..., ny, n), complex
-        ``C v_a`` of every mode, each of unit norm (see below).
-    C : ndarray, shape (..., ny, n), real, or None
-        ``C`` with ``C V = CV`` (and ``CV`` returned as ``C V``, so that the two agree to
-        rounding). Where ``V`` is too ill-conditioned to give it (a nearly defective ``A``:
-        ``C V`` off ``CV`` by more than 1e-8), the first block row's ``C`` and ``CV = C V``
-        of it: the textbook estimate, with its fault for modes beyond the band, for models
-        the fitted vectors cannot be turned into a state-space ``C`` for (without
-        ``matrix`` the fitted vectors are always returned). None without ``matrix``.
-
-    Notes
-    -----
-    The fitted ``C v_a`` of such a mode is as small as its column of ``O`` is concentrated
-    (about ``1 / |p(mu_a)|``, 1e-10 for that chain's fourth mode at 91 block rows), and
-    its ``B`` would have to be as large, beyond what :func:`estimate_bd` resolves beside
-    the other modes. Each mode is therefore rescaled to an output vector of unit norm: the
-    realization ``(A, T^-1 B, C T)`` with ``T = V diag(s) V^-1`` has the same transfer
-    function, and ``A`` itself, since ``T`` commutes with ``A`` (``s`` equal on conjugate
-    pairs keeps ``T`` real).
+    ndarray, shape (..., ny, n), complex
+        ``C v_a`` of every mode, each of unit norm (see :func:`output_matrix`).
     """
     q = basis.q
     n = O.shape[-1]
@@ -1088,21 +1062,51 @@ def modal_outputs(
     CV = np.sum(terms, axis=-1) / np.sum(np.abs(P) ** 2, axis=-1)[..., None, :]
     size = np.linalg.norm(CV, axis=-2, keepdims=True)
     CV /= np.where(size > 0.0, size, 1.0)
-    if not matrix:
-        return CV, None
-    C = np.array(O[..., :ny, :] / basis.p0, copy=True)
-    flat_V, flat_CV, flat_C = (a.reshape((-1,) + a.shape[-2:]) for a in (V, CV, C))
-    for j in range(flat_V.shape[0]):
-        try:
-            with np.errstate(all="ignore"):
-                c = np.linalg.solve(flat_V[j].T, flat_CV[j].T).T.real
-        except np.linalg.LinAlgError:
-            c = np.full_like(flat_C[j], np.nan)
-        if np.all(np.isfinite(c)) and (np.linalg.norm(c @ flat_V[j] - flat_CV[j])
-                                       <= 1e-8 * np.linalg.norm(flat_CV[j])):
-            flat_C[j] = c
-        flat_CV[j] = flat_C[j] @ flat_V[j]
-    return flat_CV.reshape(CV.shape), flat_C.reshape(C.shape)
+    return CV
+
+
+def output_matrix(
+    O: np.ndarray, mu: np.ndarray, V: np.ndarray, basis: RowBasis, ny: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """The output matrix ``C`` of one model whose modes' vectors are :func:`modal_outputs`'s.
+
+    Parameters
+    ----------
+    O : ndarray, shape (q ny, n)
+        Observability basis.
+    mu, V, basis, ny
+        As for :func:`modal_outputs`.
+
+    Returns
+    -------
+    CV : ndarray, shape (ny, n), complex
+        ``C V``: the modes' output vectors, to rounding those of :func:`modal_outputs`.
+    C : ndarray, shape (ny, n), real
+        ``C`` with ``C V = CV``. Where ``V`` is too ill-conditioned to give it (a nearly
+        defective ``A``: ``C V`` off the fitted vectors by more than 1e-8), the first block
+        row's ``C``: the textbook estimate, with its fault for modes beyond the band.
+
+    Notes
+    -----
+    The fitted ``C v_a`` of a mode beyond the band is as small as its column of ``O`` is
+    concentrated (about ``1 / |p(mu_a)|``, 1e-10 for that chain's fourth mode at 91 block
+    rows), and its ``B`` would have to be as large, beyond what :func:`estimate_bd`
+    resolves beside the other modes. Each mode is therefore rescaled to an output vector
+    of unit norm: the realization ``(A, T^-1 B, C T)`` with ``T = V diag(s) V^-1`` has the
+    same transfer function, and ``A`` itself, since ``T`` commutes with ``A`` (``s`` equal
+    on conjugate pairs keeps ``T`` real).
+    """
+    fitted = modal_outputs(O, mu, V, basis, ny)
+    C = O[:ny] / basis.p0
+    try:
+        with np.errstate(all="ignore"):
+            c = np.linalg.solve(V.T, fitted.T).T.real
+    except np.linalg.LinAlgError:
+        c = None
+    if c is not None and np.all(np.isfinite(c)) and (
+            np.linalg.norm(c @ V - fitted) <= 1e-8 * np.linalg.norm(fitted)):
+        C = c
+    return C @ V, C
 
 
 def _modal_regressor(
@@ -1427,7 +1431,7 @@ def identify_scaled(
     O, sv, path = observability(basis, Hs, n, method, weights)
     A, _ = shift_invariance(O, ny, basis)
     eigen = np.linalg.eig(A)
-    C = modal_outputs(O, *eigen, basis, ny)[1]
+    C = output_matrix(O, *eigen, basis, ny)[1]
     B = D = None
     if estimate_bd_:
         B, D = estimate_bd(z, Hs, A, C, weights=weights, eigen=eigen)

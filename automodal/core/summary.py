@@ -19,12 +19,12 @@ from automodal.core.matching import mode_numbers
 from automodal.core.modal import ModeSet, mpc, normalise_shapes, unit_max_shapes
 from automodal.core.pole_map import PoleMap
 from automodal.core.refine import (
-    DUPLICATE_HALF_BANDWIDTHS,
     PoleRefinement,
     pair_verdicts,
     refine_poles,
     residue_shapes,
     residue_wald,
+    within_reach,
 )
 from automodal.result import IdentifiedMode
 
@@ -685,10 +685,7 @@ def refine_physical_modes(
     # a companion that repeats a refined mode's resonance is that pair's second mode, where
     # the mode is alone on its pole: not split, refined and still in the fit, and with no
     # other physical mode within the pair test's reach (a repeated pair's two among them)
-    starts = states[chosen_states]
-    reach = DUPLICATE_HALF_BANDWIDTHS * np.maximum(np.abs(starts.real)[:, None],
-                                                   np.abs(starts.real)[None, :])
-    beside = np.abs(starts[:, None] - starts[None, :]) < reach
+    beside = within_reach(states[chosen_states])
     np.fill_diagonal(beside, False)
     crowded = {int(chosen[j]) for j in np.flatnonzero(beside.any(axis=1))}
     unrefined = {int(c) for c in chosen if slot[int(c)] < 0 or not ok[slot[int(c)]]}
