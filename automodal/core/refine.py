@@ -118,16 +118,6 @@ DUPLICATE_HALF_BANDWIDTHS = 2.0
 (:func:`pair_verdicts`); it is also how far the refinement's neighbourhood reaches
 (:data:`automodal.core.summary.NEAR_POLE`)."""
 
-def within_reach(poles: np.ndarray) -> np.ndarray:
-    """``(m, m)``: which pairs of ``poles`` lie within :data:`DUPLICATE_HALF_BANDWIDTHS`
-    half-bandwidths (the larger of the two ``|Re p|``) of each other, each pole with
-    itself included where its damping is not zero."""
-    poles = np.asarray(poles, dtype=complex).ravel()
-    half = np.abs(poles.real)
-    return np.abs(poles[:, None] - poles[None, :]) < DUPLICATE_HALF_BANDWIDTHS * np.maximum(
-        half[:, None], half[None, :])
-
-
 SEPARABLE_TOLERANCE = 0.05
 """The noise model's covariance of the refined poles takes the noise variance's departure
 from its separable model (:func:`separable_ratio`) into account when the ratio leaves
@@ -218,6 +208,24 @@ class PoleRefinement:
         var_f = np.einsum("mi,mij,mj->m", grad_f, self.covariance, grad_f)
         var_z = np.einsum("mi,mij,mj->m", grad_z, self.covariance, grad_z)
         return a / (2 * np.pi), np.sqrt(var_f), -s / a, np.sqrt(var_z)
+
+
+def separation(poles: np.ndarray) -> np.ndarray:
+    """``(m, m)``: how far apart each pair of ``poles`` lies, in half-bandwidths (the
+    larger of the two ``|Re p|``); ``inf`` for distinct undamped poles, ``nan`` for an
+    undamped pole and itself."""
+    poles = np.asarray(poles, dtype=complex).ravel()
+    half = np.abs(poles.real)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.abs(poles[:, None] - poles[None, :]) / np.maximum(half[:, None],
+                                                                    half[None, :])
+
+
+def within_reach(poles: np.ndarray) -> np.ndarray:
+    """``(m, m)``: which pairs of ``poles`` lie within :data:`DUPLICATE_HALF_BANDWIDTHS`
+    half-bandwidths of each other (:func:`separation`), each pole with itself included
+    where its damping is not zero."""
+    return separation(poles) < DUPLICATE_HALF_BANDWIDTHS
 
 
 def separable_weights(variance: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -1467,7 +1475,7 @@ def pair_verdicts(
     fixed = np.asarray(fixed, dtype=complex).ravel()
     m = poles.size
     half = np.abs(poles.real)
-    sep = np.abs(poles[:, None] - poles[None, :]) / np.maximum(half[:, None], half[None, :])
+    sep = separation(poles)
     start = poles if starts is None else np.asarray(starts, dtype=complex).ravel()
     one_start = within_reach(start)
     two_frequencies = (np.zeros((m, m), bool) if resolved is None
