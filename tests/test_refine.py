@@ -14,7 +14,12 @@ import numpy as np
 import pytest
 
 from automodal.core import simulate as sim
-from automodal.core.refine import pair_verdicts, refine_poles, separable_weights
+from automodal.core.refine import (
+    nearest_starts,
+    pair_verdicts,
+    refine_poles,
+    separable_weights,
+)
 
 
 def duplicate_poles(*args, **kwargs):
@@ -45,6 +50,31 @@ def test_noise_free_poles_are_found_exactly_from_a_perturbed_start():
     omega, H, poles, _ = _chain()
     start = poles * (1 + 0.003 * np.array([1, -1, 1, -1]))
     fit = refine_poles(omega, H, np.full(H.shape, 1e-8), start, np.zeros(0))
+    assert fit.refined.all()
+    np.testing.assert_allclose(fit.poles, poles, rtol=1e-9)
+
+
+def test_nearest_starts_pairs_each_start_with_the_pole_it_became():
+    """One to one, closest pair first, in the start's half-bandwidths; the identity where
+    no pole took another's place."""
+    start = np.array([-1 + 100j, -2 + 110j, -1 + 130j])
+    assert nearest_starts(start * (1 + 1e-3), start).tolist() == [0, 1, 2]
+    swapped = start[[1, 0, 2]] + 0.1
+    assert nearest_starts(swapped, start).tolist() == [1, 0, 2]
+    # two fitted poles nearest one start: the closer one is its, the other the next start's
+    got = np.array([-1 + 100.5j, -1 + 100.1j, -1 + 131j])
+    assert nearest_starts(got, start).tolist() == [1, 0, 2]
+    assert nearest_starts(np.zeros(0, complex), np.zeros(0, complex)).size == 0
+
+
+def test_poles_that_exchanged_places_are_both_refined():
+    """A fit begun with two modes' starts exchanged ends with each pole on the other's
+    resonance: each start is judged by the pole that ended on it, so both are refined
+    (judged by their own, both lay beyond reach, and were held unrefined)."""
+    omega, H, poles, _ = _chain()
+    start = poles * (1 + 0.003 * np.array([1, -1, 1, -1]))
+    initial = start[[1, 0, 2, 3]]
+    fit = refine_poles(omega, H, np.full(H.shape, 1e-8), start, np.zeros(0), initial=initial)
     assert fit.refined.all()
     np.testing.assert_allclose(fit.poles, poles, rtol=1e-9)
 
