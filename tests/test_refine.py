@@ -1433,3 +1433,21 @@ def test_residue_wald_is_chi_square_on_noise_and_grows_with_the_mode():
     omega, H, variance, lam = _strong_and_weak(20.0, 1)
     fit = refine_poles(omega, H, variance, lam[1:], lam[:1], max_iterations=0)
     assert 480 < residue_wald(fit)[0] < 960
+
+
+def test_a_companion_is_a_mode_only_where_the_pair_test_judged_it():
+    """A companion the data need beside its mode's resonance is a mode of its own; one the
+    fit carried beyond the pair test's reach of every refined pole was never judged and is
+    not (it had been promoted untested)."""
+    from types import SimpleNamespace
+
+    from automodal.core.summary import _needed_companions
+
+    omega, H, variance, lam = _two_close_modes()
+    beside = SimpleNamespace(poles=lam.copy(), refined=np.ones(2, bool))
+    assert _needed_companions(omega, H, variance, beside, 1, np.zeros(0)).tolist() == [True]
+    # the second pole moved 8 half-bandwidths above the pair, into an empty stretch
+    away = lam.copy()
+    away[1] = lam[0] + 8j * abs(lam[0].real)
+    carried = SimpleNamespace(poles=away, refined=np.ones(2, bool))
+    assert _needed_companions(omega, H, variance, carried, 1, np.zeros(0)).tolist() == [False]
