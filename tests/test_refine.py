@@ -65,6 +65,10 @@ def test_nearest_starts_pairs_each_start_with_the_pole_it_became():
     got = np.array([-1 + 100.5j, -1 + 100.1j, -1 + 131j])
     assert nearest_starts(got, start).tolist() == [1, 0, 2]
     assert nearest_starts(np.zeros(0, complex), np.zeros(0, complex)).size == 0
+    # a pole that is not finite: each start keeps its own (a permutation either way)
+    got = swapped.copy()
+    got[2] = np.nan
+    assert nearest_starts(got, start).tolist() == [0, 1, 2]
 
 
 def test_poles_that_exchanged_places_are_both_refined():

@@ -790,9 +790,10 @@ def nearest_starts(got: np.ndarray, start: np.ndarray) -> np.ndarray:
     half = np.maximum(np.abs(start.real), 1e-12)
     d = np.abs(got[None, :] - start[:, None]) / half[:, None]
     out = np.arange(start.size)
-    if start.size < 2 or np.all(np.argmin(d, axis=1) == out):
-        return out  # every start nearest its own fitted pole: nothing exchanged
-    d[~np.isfinite(d)] = np.inf
+    if start.size < 2 or not np.all(np.isfinite(d)) or np.all(np.argmin(d, axis=1) == out):
+        # every start nearest its own fitted pole: nothing exchanged (and a pole that is
+        # not finite is judged by its own start, which it has left)
+        return out
     for _ in range(start.size):
         j, i = np.unravel_index(int(np.argmin(d)), d.shape)
         out[j] = i
