@@ -83,6 +83,23 @@ def test_poles_that_exchanged_places_are_both_refined():
     np.testing.assert_allclose(fit.poles, poles, rtol=1e-9)
 
 
+def test_a_narrow_mode_beside_a_broad_companion_is_not_exchanged():
+    """Each pole moved within its own reach (the narrow mode 1.5 of its half-bandwidths,
+    the broad companion 1.2 of its own), though the companion's start lies nearer the
+    mode's fitted pole: the fit's order stands, as it leaves no stray, and both are
+    refined (review of session 52: paired nearest first, both were held)."""
+    omega = np.linspace(60, 150, 1500)
+    s = 1j * omega
+    true = np.array([-0.5 + 105.75j, -10 + 88j])
+    start = np.array([-0.5 + 105j, -10 + 100j])
+    phi = np.array([[1.0, 0.3], [10.0, 20.0]])  # mode x output
+    H = sum(np.einsum("i,f->fi", phi[r], 1 / (s - true[r]) + 1 / (s - true[r].conj()))
+            for r in range(2))[:, :, None]
+    fit = refine_poles(omega, H, np.full(H.shape, 1e-10), start, np.zeros(0))
+    assert fit.refined.all()
+    np.testing.assert_allclose(fit.poles, true, rtol=1e-8)
+
+
 def test_noise_free_exact_start_is_left_unchanged_with_fixed_poles():
     """Some poles free, the others fixed at their exact values: the exact model fits."""
     omega, H, poles, _ = _chain()
@@ -1455,3 +1472,31 @@ def test_a_companion_is_a_mode_only_where_the_pair_test_judged_it():
     away[1] = lam[0] + 8j * abs(lam[0].real)
     carried = SimpleNamespace(poles=away, refined=np.ones(2, bool))
     assert _needed_companions(omega, H, variance, carried, 1, np.zeros(0)).tolist() == [False]
+
+
+def test_a_companion_whose_only_neighbour_left_first_is_not_a_mode():
+    """One true mode; a broad companion on its resonance (a duplicate) and a second one 4
+    half-bandwidths above, within reach of the first companion only: once that one has
+    left as a duplicate, the pair of the two companions is never tested, so the second is
+    not shown to be a mode (review of session 52: it was promoted)."""
+    from types import SimpleNamespace
+
+    from automodal.core.summary import _needed_companions
+
+    rng = np.random.default_rng(0)
+    w = 2 * np.pi * 10.0
+    mode = w * (-0.005 + 1j * np.sqrt(1 - 0.005**2))
+    half = abs(mode.real)
+    omega = 2 * np.pi * np.linspace(8, 12, 800)
+    s = 1j * omega
+    H = np.einsum("i,j,f->fij", np.array([1.0, 0.4]), np.array([1.0, -0.7]),
+                  1 / (s - mode) + 1 / (s - np.conj(mode)))
+    level = 0.01 * np.sqrt(np.mean(np.abs(H) ** 2))
+    H = H + level * sim.complex_gaussian(H.shape, 1.0, rng)
+    variance = np.full(H.shape, level**2)
+    poles = np.array([mode, mode + half * (-2 + 0.5j), mode + 4j * half])
+    v = pair_verdicts(omega, H, variance, poles, np.zeros(0), np.array([False, True, True]))
+    assert v.duplicate.tolist() == [False, True, False]
+    assert v.tested.tolist() == [True, True, False]
+    fit = SimpleNamespace(poles=poles, refined=np.ones(3, bool))
+    assert _needed_companions(omega, H, variance, fit, 1, np.zeros(0)).tolist() == [False, False]

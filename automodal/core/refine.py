@@ -774,25 +774,20 @@ def _reach(start: np.ndarray, others: np.ndarray) -> np.ndarray:
 
 
 def nearest_starts(got: np.ndarray, start: np.ndarray) -> np.ndarray:
-    """Which of the fitted poles ``got`` each of ``start`` became: an index into ``got``
-    per start, one to one, the closest pair first (distance in the start's half-bandwidths,
-    ``|Re start|``).
+    """Which of the fitted poles ``got`` each of ``start`` became, were they exchanged: an
+    index into ``got`` per start, one to one, the closest pair first (distance in the
+    wider pole's half-bandwidth, as :func:`separation`); the identity where every start is
+    nearest its own fitted pole, or where a pole is not finite.
 
-    A joint fit's poles are unordered (the model is their sum), so a pole that moved onto
-    its neighbour's resonance while the neighbour moved off has taken the neighbour's
-    place. Judged by its own start instead, each pole of the exchange looked like a stray
-    (seed 2381 f_05, a 35 x 3 dense grid: a companion 0.09 Hz above a mode of SNR 32 000
-    took the mode's resonance, the mode's pole narrowed 4 times beside it, and the mode
-    kept its bootstrap statistics).
+    :func:`_fit_holding_strays` takes this pairing only where it leaves fewer poles
+    judged strayed than the fit's own order does (:func:`_arranged`).
     """
     got = np.asarray(got, dtype=complex)
     start = np.asarray(start, dtype=complex)
-    half = np.maximum(np.abs(start.real), 1e-12)
-    d = np.abs(got[None, :] - start[:, None]) / half[:, None]
+    half = np.maximum(np.abs(start.real)[:, None], np.abs(got.real)[None, :])
+    d = np.abs(got[None, :] - start[:, None]) / np.maximum(half, 1e-12)
     out = np.arange(start.size)
     if start.size < 2 or not np.all(np.isfinite(d)) or np.all(np.argmin(d, axis=1) == out):
-        # every start nearest its own fitted pole: nothing exchanged (and a pole that is
-        # not finite is judged by its own start, which it has left)
         return out
     for _ in range(start.size):
         j, i = np.unravel_index(int(np.argmin(d)), d.shape)
@@ -800,6 +795,43 @@ def nearest_starts(got: np.ndarray, start: np.ndarray) -> np.ndarray:
         d[j, :] = np.inf
         d[:, i] = np.inf
     return out
+
+
+def _strayed(got: np.ndarray, start: np.ndarray, limit: np.ndarray,
+             width: bool = True) -> np.ndarray:
+    """Which fitted poles ``got`` have left what a refinement of ``start`` may do: beyond
+    ``limit`` (:func:`_reach`), unstable, and (``width``) a half-bandwidth changed by more
+    than :data:`MAX_DAMPING_CHANGE` times. A pole that is not finite has strayed."""
+    with np.errstate(invalid="ignore"):
+        bad = ~(np.abs(got - start) <= limit) | ~(got.real < 0) | ~(got.imag > 0)
+        if width:
+            ratio = np.abs(got.real) / np.maximum(np.abs(start.real), 1e-12)
+            bad |= ~((ratio <= MAX_DAMPING_CHANGE) & (ratio >= 1.0 / MAX_DAMPING_CHANGE))
+    return bad
+
+
+def _arranged(got: np.ndarray, start: np.ndarray, limit: np.ndarray,
+              width: bool = True) -> np.ndarray:
+    """The fitted poles in the order of the starts they are judged by.
+
+    A joint fit's poles are unordered (the model is their sum): a pole may take its
+    neighbour's resonance while the neighbour moves off (seed 2381 f_05, a 35 x 3 dense
+    grid: a companion 0.09 Hz above a mode of SNR 32 000 took the mode's resonance and the
+    mode's pole narrowed 4 times beside it, so the mode kept its bootstrap statistics).
+    The starts' pairing with the poles nearest them (:func:`nearest_starts`) is taken
+    unless it leaves more strays (:func:`_strayed`) than the fit's order (a narrow mode
+    beside a broad companion, each within its own reach, though the companion's start lies
+    nearer the mode's pole: paired nearest first, both were held). Where the two orders
+    leave as many, the nearest pairing stands: in that grid's fit the exchange left one
+    stray either way, the mode's own pole or the companion.
+    """
+    perm = nearest_starts(got, start)
+    if np.array_equal(perm, np.arange(perm.size)):
+        return got
+    moved = got[perm]
+    if np.sum(_strayed(moved, start, limit, width)) <= np.sum(_strayed(got, start, limit, width)):
+        return moved
+    return got
 
 
 def _fit_holding_strays(
@@ -836,16 +868,14 @@ def _fit_holding_strays(
         def left(got: np.ndarray, start: np.ndarray = start,
                  limit: np.ndarray = limit) -> np.ndarray:
             # out of reach or unstable: no later step brings a pole back from there (each
-            # start judged by the pole it became)
-            got = got[nearest_starts(got, start)]
-            return (np.abs(got - start) > limit) | (got.real >= 0) | (got.imag <= 0)
+            # start judged by the pole it became, _arranged)
+            return _strayed(_arranged(got, start, limit, False), start, limit, False)
 
         got, it, _ = _gauss_newton(prob, current[idx], max_iterations, left)
-        got = got[nearest_starts(got, start)]
         # the half-bandwidth is judged at the end only: from a start off its resonance a
         # pole first widens to reach it (4.8 times, 5 half-bandwidths off), then narrows
-        ratio = np.abs(got.real) / np.maximum(np.abs(start.real), 1e-12)
-        bad = left(got) | (ratio > MAX_DAMPING_CHANGE) | (ratio < 1.0 / MAX_DAMPING_CHANGE)
+        got = _arranged(got, start, limit)
+        bad = _strayed(got, start, limit)
         ok[idx[bad]] = False
         if not bad.any():
             poles[idx] = got
@@ -1406,17 +1436,23 @@ class PairVerdicts:
         The duplicates whose pair started on two resonances (``starts`` further apart than
         :data:`DUPLICATE_HALF_BANDWIDTHS` half-bandwidths): the fit carried the pole from
         its own resonance onto its partner's, and its start's mode is not judged.
+    tested : ndarray of bool, shape (m,)
+        The poles of at least one pair whose test was made. A pair within reach is not
+        tested when either pole left as a duplicate or a repeat before its turn, nor when
+        the lines are too few for any test.
     """
 
     duplicate: np.ndarray
     repeats: np.ndarray
     fits: np.ndarray
     carried: np.ndarray
+    tested: np.ndarray
 
     @classmethod
     def untested(cls, m: int) -> PairVerdicts:
         """The verdicts of ``m`` poles of which no pair was tested."""
-        return cls(np.zeros(m, bool), np.full(m, -1), np.ones(m, bool), np.zeros(m, bool))
+        return cls(np.zeros(m, bool), np.full(m, -1), np.ones(m, bool), np.zeros(m, bool),
+                   np.zeros(m, bool))
 
 
 def pair_verdicts(
@@ -1526,6 +1562,7 @@ def pair_verdicts(
     dup = np.zeros(m, bool)
     repeats = np.full(m, -1)
     carried = np.zeros(m, bool)  # duplicates only
+    judged = np.zeros(m, bool)  # poles of a pair whose test was made
     wald, local, over_noise, local_nu = _wald_and_local(s, sw, Y, poles, fixed,
                                                         separable_ratio(variance))
     threshold = float(chdtri(2 * Y.shape[1] + 2, DUPLICATE_LEVEL))
@@ -1611,6 +1648,7 @@ def pair_verdicts(
             pending = pending[n_jobs:]
             tests = pmap(verdict, batch, [gone] * len(batch))
             for k, v in enumerate(tests):
+                judged[list(batch[k])] = True  # those after a duplicate are made again
                 if v == 0:
                     continue
                 weak, strong = weaker(*batch[k])
@@ -1626,5 +1664,5 @@ def pair_verdicts(
     while True:
         orphan = (repeats >= 0) & dup[np.maximum(repeats, 0)]
         if not orphan.any():
-            return PairVerdicts(dup, repeats, over_noise <= fit_limit, carried)
+            return PairVerdicts(dup, repeats, over_noise <= fit_limit, carried, judged)
         dup[orphan], repeats[orphan] = True, -1

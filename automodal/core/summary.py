@@ -343,11 +343,13 @@ def _needed_companions(
     poles, the companions expendable, on ``jobs`` workers), with every other pole in the
     model.
 
-    Only a companion the test judged can be needed: one that the fit took beyond the
-    test's reach of every refined pole (:func:`automodal.core.refine.within_reach`) is not
-    the second of two near-coincident modes, and nothing was tested of it (the slow tests'
-    7 x 12 grid: a companion carried 6 half-bandwidths below a mode at 13.77 Hz, into an
-    empty stretch, was called a mode of physicalness 0.15 at 13.29 Hz)."""
+    Only a companion the test judged can be needed
+    (:attr:`~automodal.core.refine.PairVerdicts.tested`): one that the fit took beyond the
+    test's reach of every refined pole, or whose only neighbour within reach left as a
+    duplicate before their pair's turn, is not shown to be the second of two
+    near-coincident modes (the slow tests' 7 x 12 grid: a companion
+    carried 6 half-bandwidths below a mode at 13.77 Hz, into an empty stretch, was called a
+    mode of physicalness 0.15 at 13.29 Hz)."""
     n = fit.poles.size
     out = np.zeros(n - k, bool)
     ok = np.flatnonzero(fit.refined)
@@ -357,10 +359,8 @@ def _needed_companions(
     expendable = ok >= k
     v = pair_verdicts(omega, H, variance, fit.poles[ok],
                       np.concatenate([fit.poles[~fit.refined], fixed]), expendable, jobs)
-    beside = within_reach(fit.poles[ok])
-    np.fill_diagonal(beside, False)
     # one that repeats a refined mode's resonance is held in that mode's residue
-    out[comp - k] = (~(v.duplicate | (v.repeats >= 0)) & beside.any(axis=1))[expendable]
+    out[comp - k] = (~(v.duplicate | (v.repeats >= 0)) & v.tested)[expendable]
     return out
 
 
