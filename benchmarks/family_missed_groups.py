@@ -24,37 +24,29 @@ one mode is 7.6 times the other under proportional noise (2447 f_10).)
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import itertools
 import json
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 
-
-def load_family(path: Path):
-    """The scorer module (``shared/eval/family.py``)."""
-    spec = importlib.util.spec_from_file_location("family", path)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules["family"] = module  # its dataclasses look their module up
-    spec.loader.exec_module(module)
-    return module
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_noise import FAMILY, load_family  # noqa: E402
 
 
-def _vector(d: dict) -> np.ndarray:
-    return np.asarray(d["real"], float) + 1j * np.asarray(d["imag"], float)
-
-
-def describe(group: list[dict]) -> dict:
+def describe(group: list[dict], vector: Callable[[dict], np.ndarray]) -> dict:
     """The group's frequencies, SNRs, gaps (half-bandwidths of the lower mode) and each
-    direction's approximate SNR, least and most over the modes' unknown relative signs."""
+    direction's approximate SNR, least and most over the modes' unknown relative signs
+    (``vector``: a truth file's ``{"real", "imag"}`` shape as a complex array, the
+    scorer's own)."""
     f = np.array([m["frequency_hz"] for m in group])
     zeta = np.array([m["damping_ratio"] for m in group])
     snr = np.array([m["snr"] for m in group])
     terms = []
     for m, weight in zip(group, snr):
-        u, v = _vector(m["mode_shape"]), _vector(m["input_shape"])
+        u, v = vector(m["mode_shape"]), vector(m["input_shape"])
         terms.append(weight * np.outer(u / np.linalg.norm(u), (v / np.linalg.norm(v)).conj()))
     sv = np.array([np.linalg.svd(sum(sign * t for sign, t in zip((1,) + signs, terms)),
                                  compute_uv=False)
@@ -68,8 +60,7 @@ def describe(group: list[dict]) -> dict:
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("dirs", nargs="+", type=Path)
-    ap.add_argument("--family", type=Path,
-                    default=Path(__file__).resolve().parents[2] / "shared/eval/family.py")
+    ap.add_argument("--family", type=Path, default=FAMILY)
     a = ap.parse_args()
     fam = load_family(a.family)
     for d in a.dirs:
@@ -87,7 +78,7 @@ def main() -> int:
                 if any(first == m[0] for m in missed):
                     name = tp.name.removesuffix(".truth.json")
                     print(f"{tp.parent.name}/{name}", truth["note"], f"rank {truth['rank']}",
-                          json.dumps(describe([modes[j] for j in group])))
+                          json.dumps(describe([modes[j] for j in group], fam._shape)))
     return 0
 
 

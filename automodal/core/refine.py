@@ -776,16 +776,16 @@ def _reach(start: np.ndarray, others: np.ndarray) -> np.ndarray:
 def nearest_starts(got: np.ndarray, start: np.ndarray) -> np.ndarray:
     """Which of the fitted poles ``got`` each of ``start`` became, were they exchanged: an
     index into ``got`` per start, one to one, the closest pair first (distance in the
-    wider pole's half-bandwidth, as :func:`separation`); the identity where every start is
-    nearest its own fitted pole, or where a pole is not finite.
+    wider pole's half-bandwidth, :func:`separation`); the identity where every start is
+    nearest its own fitted pole, or where a distance is not finite (a pole that is not, or
+    two undamped ones).
 
     :func:`_fit_holding_strays` takes this pairing only where it leaves fewer poles
     judged strayed than the fit's own order does (:func:`_arranged`).
     """
-    got = np.asarray(got, dtype=complex)
-    start = np.asarray(start, dtype=complex)
-    half = np.maximum(np.abs(start.real)[:, None], np.abs(got.real)[None, :])
-    d = np.abs(got[None, :] - start[:, None]) / np.maximum(half, 1e-12)
+    start = np.asarray(start, dtype=complex).ravel()
+    d = separation(np.concatenate([start, np.asarray(got, dtype=complex).ravel()]))
+    d = d[: start.size, start.size:]  # (start, got)
     out = np.arange(start.size)
     if start.size < 2 or not np.all(np.isfinite(d)) or np.all(np.argmin(d, axis=1) == out):
         return out
@@ -811,8 +811,9 @@ def _strayed(got: np.ndarray, start: np.ndarray, limit: np.ndarray,
 
 
 def _arranged(got: np.ndarray, start: np.ndarray, limit: np.ndarray,
-              width: bool = True) -> np.ndarray:
-    """The fitted poles in the order of the starts they are judged by.
+              width: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """The fitted poles in the order of the starts they are judged by, and which of them
+    strayed (:func:`_strayed`, judged so).
 
     A joint fit's poles are unordered (the model is their sum): a pole may take its
     neighbour's resonance while the neighbour moves off (seed 2381 f_05, a 35 x 3 dense
@@ -825,13 +826,13 @@ def _arranged(got: np.ndarray, start: np.ndarray, limit: np.ndarray,
     leave as many, the nearest pairing stands: in that grid's fit the exchange left one
     stray either way, the mode's own pole or the companion.
     """
+    bad = _strayed(got, start, limit, width)
     perm = nearest_starts(got, start)
     if np.array_equal(perm, np.arange(perm.size)):
-        return got
+        return got, bad
     moved = got[perm]
-    if np.sum(_strayed(moved, start, limit, width)) <= np.sum(_strayed(got, start, limit, width)):
-        return moved
-    return got
+    bad_moved = _strayed(moved, start, limit, width)
+    return (moved, bad_moved) if bad_moved.sum() <= bad.sum() else (got, bad)
 
 
 def _fit_holding_strays(
@@ -869,13 +870,12 @@ def _fit_holding_strays(
                  limit: np.ndarray = limit) -> np.ndarray:
             # out of reach or unstable: no later step brings a pole back from there (each
             # start judged by the pole it became, _arranged)
-            return _strayed(_arranged(got, start, limit, False), start, limit, False)
+            return _arranged(got, start, limit, False)[1]
 
         got, it, _ = _gauss_newton(prob, current[idx], max_iterations, left)
         # the half-bandwidth is judged at the end only: from a start off its resonance a
         # pole first widens to reach it (4.8 times, 5 half-bandwidths off), then narrows
-        got = _arranged(got, start, limit)
-        bad = _strayed(got, start, limit)
+        got, bad = _arranged(got, start, limit)
         ok[idx[bad]] = False
         if not bad.any():
             poles[idx] = got
