@@ -1500,3 +1500,47 @@ def test_a_companion_whose_only_neighbour_left_first_is_not_a_mode():
     assert v.tested.tolist() == [True, True, False]
     fit = SimpleNamespace(poles=poles, refined=np.ones(3, bool))
     assert _needed_companions(omega, H, variance, fit, 1, np.zeros(0)).tolist() == [False, False]
+
+
+def test_a_held_second_row_of_a_refined_resonance_is_not_needed():
+    """A physical mode whose pole the fit held (or carried off) is judged at its start
+    against the refined physical poles: a second row of a refined mode's resonance is not
+    needed (the slow 8 x 10 grid reported such rows physical), one on a resonance of its
+    own is, and one whose nearest pole is another held pole is not judged (a lone pole
+    fitted there beats two unfitted ones, whatever the modes)."""
+    from automodal.core.summary import _redundant_held
+
+    omega, H, variance, lam = _two_modes_two_inputs(2)
+    half = abs(lam[0].real)
+    second_row = lam[0] + 0.2j * half
+    assert _redundant_held(omega, H, variance, lam[:1], [second_row], lam[1:]).tolist() == [
+        True]
+    own = lam[1] * (1 + 1e-3)
+    assert _redundant_held(omega, H, variance, lam[:1], [own], np.zeros(0)).tolist() == [False]
+    # both held poles nearer each other than the refined one: neither is judged
+    pair = [lam[1], lam[1] + 0.1j * half]
+    assert _redundant_held(omega, H, variance, lam[:1], pair, np.zeros(0)).tolist() == [
+        False, False]
+    assert _redundant_held(omega, H, variance, np.zeros(0), [own], lam[:1]).tolist() == [False]
+
+
+@pytest.mark.parametrize("at_hz, second_row", [(10.005, True), (10.05, False)])
+def test_a_held_physical_mode_is_physical_only_off_a_refined_resonance(at_hz, second_row):
+    """Two modes one half-bandwidth apart, two inputs; the clustering called a third
+    cluster physical, whose reference pole is too broad (the fit narrows it more than
+    three times, so holds it). Beside the refined 10.0 Hz mode it is a second row of that
+    resonance and not physical; where it is the only pole of the 10.05 Hz mode it stays
+    physical with its bootstrap statistics."""
+    from automodal.core.summary import refine_physical_modes
+
+    omega, H, variance, lam = _two_modes_two_inputs(2)
+    broad = 2 * np.pi * at_hz * (-0.025 + 1j * np.sqrt(1 - 0.025**2))
+    start = np.array([lam[0] * (1 + 1e-4), broad] + ([lam[1] * (1 - 1e-4)] if second_row
+                                                      else []))
+    modes = [_mode(r, True, abs(p) / (2 * np.pi)) for r, p in enumerate(start)]
+    out = refine_physical_modes(modes, np.concatenate([start, start.conj()]),
+                                np.arange(start.size), omega, H, variance)
+    held = out[1]
+    assert held.estimator == "bootstrap"
+    assert held.physical is not second_row
+    assert all(m.physical and m.estimator == "ml" for i, m in enumerate(out) if i != 1)

@@ -19,11 +19,13 @@ from automodal.core.matching import mode_numbers
 from automodal.core.modal import ModeSet, mpc, normalise_shapes, unit_max_shapes
 from automodal.core.pole_map import PoleMap
 from automodal.core.refine import (
+    DUPLICATE_HALF_BANDWIDTHS,
     PoleRefinement,
     pair_verdicts,
     refine_poles,
     residue_shapes,
     residue_wald,
+    separation,
     within_reach,
 )
 from automodal.result import IdentifiedMode
@@ -364,6 +366,46 @@ def _needed_companions(
     return out
 
 
+def _redundant_held(
+    omega: np.ndarray, H: np.ndarray, variance: np.ndarray, refined: np.ndarray,
+    held: np.ndarray, background: np.ndarray, jobs: int | None = 1,
+) -> np.ndarray:
+    """Which ``held`` poles (of physical modes the refinement did not confirm, at their
+    starts) the data do not need beside the ``refined`` poles of physical modes, as
+    :func:`automodal.core.refine.pair_verdicts` judges a duplicate: each held pole gives
+    way to its nearest pole within the test's reach, which is refitted alone, with the
+    other poles and ``background`` in the basis.
+
+    Such modes keep their bootstrap statistics, and no pair test had judged them: the fit
+    held their pole, or carried it onto another resonance (:func:`_carried_off`), so a
+    second row of one resonance stayed physical (the slow tests' 8 x 10 grid, bootstrap
+    seed 1: 28.599 Hz, carried off, beside 28.632 Hz, refined, 0.14 half-bandwidths
+    apart, for one true mode at 28.632 Hz). A held pole that is its resonance's only pole
+    is needed: without it a neighbour's pole would have to fit both resonances. One that
+    repeats a refined pole's resonance (a repeated pair's second mode) is kept."""
+    refined = np.asarray(refined, dtype=complex).ravel()
+    held = np.asarray(held, dtype=complex).ravel()
+    background = np.asarray(background, dtype=complex).ravel()
+    out = np.zeros(held.size, bool)
+    if held.size == 0 or refined.size == 0:
+        return out
+    # only a held pole whose nearest pole is a refined one, within the test's reach: two
+    # held poles are both where the subspace estimate put them, and a lone pole fitted
+    # to the data there fits better than either, whatever the modes
+    sep = separation(np.concatenate([refined, held]))[refined.size:]
+    sep[np.arange(held.size), refined.size + np.arange(held.size)] = np.inf
+    sep[np.isnan(sep)] = np.inf
+    nearest = np.argmin(sep, axis=1)
+    judged = (nearest < refined.size) & (sep.min(axis=1) < DUPLICATE_HALF_BANDWIDTHS)
+    if not judged.any():
+        return out
+    expendable = np.arange(refined.size + judged.sum()) >= refined.size
+    v = pair_verdicts(omega, H, variance, np.concatenate([refined, held[judged]]),
+                      np.concatenate([held[~judged], background]), expendable, jobs)
+    out[judged] = (v.duplicate & (v.repeats < 0))[expendable]
+    return out
+
+
 def _without_split_poles(
     omega: np.ndarray, H: np.ndarray, variance: np.ndarray, free: np.ndarray,
     fixed: np.ndarray, leaves: np.ndarray, repeats: np.ndarray, jobs: int | None,
@@ -521,6 +563,11 @@ def refine_physical_modes(
     (14.108 Hz beside 14.076 Hz) but the other promoted pole's shape was a mixture of a
     group of three, so a single input or output promotes none.
 
+    A physical mode the refinement did not confirm (its pole held, or carried off onto
+    another resonance) is judged at its starting pole against the refined physical poles
+    (:func:`_redundant_held`): a second row of a refined mode's resonance is no longer
+    physical; one that is its resonance's only pole keeps its bootstrap statistics.
+
     A mode the lines do not resolve (:func:`resolved`) needs the likelihood's support: a
     companion so narrow is never promoted (the ratio's chi-square law needs a pole the lines
     resolve; narrower, it fits the noise of a line or two), and a physical mode so narrow
@@ -667,6 +714,19 @@ def refine_physical_modes(
     # second of two near-coincident modes the clustering joined into one)
     promoted = (_needed_companions(omega, H, variance, fit, k, fixed, jobs) if min(H.shape[1:]) >= 2
                 else np.zeros(fit.poles.size - k, bool))
+    # the physical modes the refinement did not confirm (their pole held, or carried off
+    # and out of the fit), at their starts, beside the refined physical poles: a second
+    # row of a refined mode's resonance is not a mode
+    place = at[:len(chosen)]
+    unconfirmed = (repeats < 0) & ~np.isin(np.asarray(chosen), list(split))
+    unconfirmed &= (place < 0) | ~fit.refined[np.maximum(place, 0)]
+    confirmed_at = np.concatenate([np.flatnonzero(fit.refined[:k]),
+                                   k + np.flatnonzero(promoted & fit.refined[k:])])
+    basis_at = np.setdiff1d(np.arange(fit.poles.size),
+                            np.concatenate([confirmed_at, place[unconfirmed]]))
+    redundant = np.asarray(chosen)[unconfirmed][_redundant_held(
+        omega, H, variance, fit.poles[confirmed_at], free[:len(chosen)][unconfirmed],
+        np.concatenate([fit.poles[basis_at], fixed]), jobs)]
     owners = Counter(m.reference_mode for m in modes)
     # the clusters below the c-means line whose modes the likelihood may still hold
     weak = ([] if n_bootstrap is None
@@ -699,9 +759,11 @@ def refine_physical_modes(
     unrefined = {int(c) for c in chosen if slot[int(c)] < 0 or not ok[slot[int(c)]]}
     seconds = _repeated_companions(modes, repeating, oscillatory, chosen, by_reference,
                                    owners, split | shared | crowded | unrefined)
+    # the data need no second pole there
+    unneeded = split | {int(r) for r in redundant}
     out = []
     for m in modes:
-        if m.physical and m.reference_mode in split:  # the data need no second pole there
+        if m.physical and m.reference_mode in unneeded:
             out.append(_not_physical(m))
             continue
         j = slot.get(m.reference_mode, -1)
