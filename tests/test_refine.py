@@ -1544,3 +1544,30 @@ def test_a_held_physical_mode_is_physical_only_off_a_refined_resonance(at_hz, se
     assert held.estimator == "bootstrap"
     assert held.physical is not second_row
     assert all(m.physical and m.estimator == "ml" for i, m in enumerate(out) if i != 1)
+
+
+@pytest.mark.parametrize("companion, held_physical", [
+    ("mode", False), ("vetoed", True), ("no cluster", True)])
+def test_a_held_mode_gives_way_only_to_a_pole_reported_physical(companion, held_physical):
+    """The 10.05 Hz mode's cluster is physical but its reference pole (10.12 Hz) is held;
+    the reference's companion on that resonance is refined and needed. Where the
+    companion becomes a mode, the held row is its second and not physical; where the
+    companion is not reported physical (its cluster vetoed: 5 members, 5 % of the
+    replicates; or no cluster of its own), the held row is the resonance's only physical
+    mode and stays (review of session 53: it was judged against the unreported pole)."""
+    from automodal.core.summary import refine_physical_modes
+
+    omega, H, variance, lam = _two_modes_two_inputs(2)
+    broad = 2 * np.pi * 10.12 * (-0.005 + 1j * np.sqrt(1 - 0.005**2))
+    start = np.array([lam[0] * (1 + 1e-4), lam[1] * (1 - 1e-4), broad])
+    modes = [_mode(0, True, 10.0), _mode(2, True, 10.05)]
+    if companion == "mode":
+        modes.append(_mode(1, False, 10.05))
+    elif companion == "vetoed":
+        modes.append(_mode(1, False, 10.05, occurrence=0.05, members=5))
+    out = refine_physical_modes(modes, np.concatenate([start, start.conj()]), np.arange(3),
+                                omega, H, variance)
+    held = next(m for m in out if m.reference_mode == 2)
+    assert held.estimator == "bootstrap" and held.physical is held_physical
+    at_pair = [m for m in out if m.physical and abs(m.frequency_hz - 10.05) < 0.01]
+    assert len(at_pair) == 1

@@ -714,19 +714,6 @@ def refine_physical_modes(
     # second of two near-coincident modes the clustering joined into one)
     promoted = (_needed_companions(omega, H, variance, fit, k, fixed, jobs) if min(H.shape[1:]) >= 2
                 else np.zeros(fit.poles.size - k, bool))
-    # the physical modes the refinement did not confirm (their pole held, or carried off
-    # and out of the fit), at their starts, beside the refined physical poles: a second
-    # row of a refined mode's resonance is not a mode
-    place = at[:len(chosen)]
-    unconfirmed = (repeats < 0) & ~np.isin(np.asarray(chosen), list(split))
-    unconfirmed &= (place < 0) | ~fit.refined[np.maximum(place, 0)]
-    confirmed_at = np.concatenate([np.flatnonzero(fit.refined[:k]),
-                                   k + np.flatnonzero(promoted & fit.refined[k:])])
-    basis_at = np.setdiff1d(np.arange(fit.poles.size),
-                            np.concatenate([confirmed_at, place[unconfirmed]]))
-    redundant = np.asarray(chosen)[unconfirmed][_redundant_held(
-        omega, H, variance, fit.poles[confirmed_at], free[:len(chosen)][unconfirmed],
-        np.concatenate([fit.poles[basis_at], fixed]), jobs)]
     owners = Counter(m.reference_mode for m in modes)
     # the clusters below the c-means line whose modes the likelihood may still hold
     weak = ([] if n_bootstrap is None
@@ -734,6 +721,7 @@ def refine_physical_modes(
                                   min(H.shape[1:]) >= 2))
     weak_fit = (None if not weak else _weak_modes(
         omega, H, variance, fit, fixed, states[oscillatory[weak]], oscillatory.size, jobs))
+    model_poles = fit.poles  # the model's, for the tests below (``fit`` then the structure's)
     fit = _mapped(fit, pole_map)
     if weak_fit is not None:
         weak_fit = _mapped(weak_fit, pole_map)
@@ -759,6 +747,30 @@ def refine_physical_modes(
     unrefined = {int(c) for c in chosen if slot[int(c)] < 0 or not ok[slot[int(c)]]}
     seconds = _repeated_companions(modes, repeating, oscillatory, chosen, by_reference,
                                    owners, split | shared | crowded | unrefined)
+
+    def companion_reported(m: IdentifiedMode, j: int) -> bool:
+        # a companion that stayed is physical on the likelihood ratio; the ratio's law
+        # needs a pole the lines resolve (a narrower one fits the noise of a line or two)
+        return not _companion_vetoed(m) and resolved(f[j], z[j], lines_hz, decay)
+
+    # the poles reported physical with the refinement's statistics: the physical modes'
+    # own (not split, not a repeated pair's weaker) and the companions that become modes
+    by_mode = {m.reference_mode: m for m in modes if owners[m.reference_mode] == 1}
+    gone = split | shared
+    reported = [slot[c] for c in chosen if c not in gone and slot[c] >= 0 and ok[slot[c]]]
+    reported += [slot[r] for r in set(slot) - set(chosen)
+                 if ok[slot[r]] and companion_reported(by_mode[r], slot[r])]
+    # the physical modes the refinement did not confirm (their pole held, or carried off
+    # and out of the fit) judged at their starts against those: a second row of a
+    # reported mode's resonance is not a mode
+    place = at[:len(chosen)]
+    unconfirmed = (repeats < 0) & ~np.isin(chosen, list(split))
+    unconfirmed &= (place < 0) | ~ok[np.maximum(place, 0)]
+    basis = np.setdiff1d(np.arange(model_poles.size),
+                         np.concatenate([reported, place[unconfirmed]]).astype(int))
+    redundant = np.asarray(chosen)[unconfirmed][_redundant_held(
+        omega, H, variance, model_poles[np.asarray(reported, dtype=int)],
+        free[:len(chosen)][unconfirmed], np.concatenate([model_poles[basis], fixed]), jobs)]
     # the data need no second pole there
     unneeded = split | {int(r) for r in redundant}
     out = []
@@ -789,10 +801,8 @@ def refine_physical_modes(
             # its own (the partner's residue holds both modes' directions)
             out.append(replace(m, **refined_stats))
             continue
-        if j >= k:  # a companion that stayed: physical on the likelihood ratio
-            if _companion_vetoed(m) or not resolved(f[j], z[j], lines_hz, decay):
-                # the ratio's law needs a pole the lines resolve: a narrower one fits
-                # the noise of a line or two
+        if j >= k:  # a companion that stayed
+            if not companion_reported(m, j):
                 out.append(m)
                 continue
             m = replace(m, physical=True)
