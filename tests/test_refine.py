@@ -1244,6 +1244,10 @@ def test_the_fit_without_split_poles_places_each_pole():
     leaves, repeats = np.array([False, False]), np.array([-1, 0])
     fit, at = _without_split_poles(omega, H, variance, free, np.zeros(0), leaves, repeats, 1)
     assert at.tolist() == [0, 0, 1] and fit.poles.size == 2
+    # a repeat of a split that leaves has no place (it read the last pole's before)
+    leaves, repeats = np.array([False, True]), np.array([1, -1])
+    fit, at = _without_split_poles(omega, H, variance, free, np.zeros(0), leaves, repeats, 1)
+    assert at.tolist() == [-1, -1, 0] and fit.poles.size == 1
 
 
 def test_modes_sharing_a_pole_are_named_in_a_warning():

@@ -442,10 +442,12 @@ def _without_split_poles(
     for j in np.flatnonzero(repeats >= 0):
         r = j
         for _ in range(k):  # a chain of repeats ends at a pole that stayed
-            if not gone[r]:
+            if r < 0 or not gone[r]:
                 break
             r = int(repeats[r])
-        at[j] = at[r]
+        # or at a split that left (pair_verdicts makes a repeat of a duplicate one too,
+        # so only a caller's own verdicts lead there): no place
+        at[j] = at[r] if r >= 0 else -1
     return fit, at
 
 
