@@ -29,6 +29,7 @@ from __future__ import annotations
 import argparse
 import json
 from collections import defaultdict
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -117,26 +118,31 @@ def _robust_sd(x: np.ndarray) -> float:
     return float(1.4826 * np.median(np.abs(x - np.median(x)))) if x.size else float("nan")
 
 
+def scored_cases(dirs: list[Path]) -> Iterator[tuple[Path, dict, dict]]:
+    """``(truth file, truth, report)`` of every scored case in ``dirs``: each
+    ``NAME.truth.json`` beside a ``NAME.report.json``, in name order."""
+    for folder in dirs:
+        for tf in sorted(folder.glob("*.truth.json")):
+            rf = tf.with_name(tf.name.replace(".truth.json", ".report.json"))
+            if rf.exists():
+                yield tf, json.loads(tf.read_text()), json.loads(rf.read_text())
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("dirs", nargs="+", type=Path)
     args = parser.parse_args()
     groups: dict[str, list[dict]] = defaultdict(list)
     paired: dict[str, list[dict]] = defaultdict(list)
-    for folder in args.dirs:
-        for tf in sorted(folder.glob("*.truth.json")):
-            rf = tf.with_name(tf.name.replace(".truth.json", ".report.json"))
-            if not rf.exists():
-                continue
-            truth, report = json.loads(tf.read_text()), json.loads(rf.read_text())
-            kind = truth["note"].split(",")[0].strip()
-            noise = truth["note"].split(",")[-1].split()[0]
-            for row in matched_pairs(truth, report):
-                for key in ("all", f"system {kind}", f"noise {noise}"):
-                    groups[key].append(row)
-            for row in scorer_pairs(truth, report):
-                for key in ("all", f"{row['group']}", f"{row['group']}, {kind}"):
-                    paired[key].append(row)
+    for _, truth, report in scored_cases(args.dirs):
+        kind = truth["note"].split(",")[0].strip()
+        noise = truth["note"].split(",")[-1].split()[0]
+        for row in matched_pairs(truth, report):
+            for key in ("all", f"system {kind}", f"noise {noise}"):
+                groups[key].append(row)
+        for row in scorer_pairs(truth, report):
+            for key in ("all", f"{row['group']}", f"{row['group']}, {kind}"):
+                paired[key].append(row)
     print("| matched clear modes | n | coverage f | coverage zeta | robust sd of (f - f0) / std "
           "| robust sd of (zeta - zeta0) / std |\n|---|---:|---:|---:|---:|---:|")
     for key in sorted(groups, key=lambda k: (k != "all", k)):

@@ -34,6 +34,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_noise import FAMILY, load_family  # noqa: E402
+from family_coverage import scored_cases  # noqa: E402
 
 
 def describe(group: list[dict], vector: Callable[[dict], np.ndarray]) -> dict:
@@ -63,22 +64,15 @@ def main() -> int:
     ap.add_argument("--family", type=Path, default=FAMILY)
     a = ap.parse_args()
     fam = load_family(a.family)
-    for d in a.dirs:
-        for tp in sorted(d.glob("*.truth.json")):
-            rp = tp.with_name(tp.name.replace(".truth.json", ".report.json"))
-            if not rp.exists():
-                continue
-            truth, report = json.loads(tp.read_text()), json.loads(rp.read_text())
-            missed = fam.score_case(truth, report)["missed_clear"]
-            if not missed:
-                continue
-            modes = truth["modes"]
-            for group in fam._groups(modes):
-                first = round(modes[group[0]]["frequency_hz"], 3)
-                if any(first == m[0] for m in missed):
-                    name = tp.name.removesuffix(".truth.json")
-                    print(f"{tp.parent.name}/{name}", truth["note"], f"rank {truth['rank']}",
-                          json.dumps(describe([modes[j] for j in group], fam._shape)))
+    for tp, truth, report in scored_cases(a.dirs):
+        missed = fam.score_case(truth, report)["missed_clear"]
+        modes = truth["modes"]
+        for group in fam._groups(modes) if missed else []:
+            first = round(modes[group[0]]["frequency_hz"], 3)
+            if any(first == m[0] for m in missed):
+                name = tp.name.removesuffix(".truth.json")
+                print(f"{tp.parent.name}/{name}", truth["note"], f"rank {truth['rank']}",
+                      json.dumps(describe([modes[j] for j in group], fam._shape)))
     return 0
 
 

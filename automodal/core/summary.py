@@ -755,26 +755,22 @@ def refine_physical_modes(
         # needs a pole the lines resolve (a narrower one fits the noise of a line or two)
         return not _companion_vetoed(m) and resolved(f[j], z[j], lines_hz, decay)
 
-    # the poles reported physical with the refinement's statistics: the physical modes'
-    # own (not split, not a repeated pair's weaker) and the companions that become modes
+    # the poles reported physical with the refinement's statistics: those of the physical
+    # modes on a pole of their own (not split, not a repeated pair's weaker) that were
+    # refined, and of the companions that become modes; the others of those modes (held,
+    # or carried off and out of the fit) are judged at their starts against them: a
+    # second row of a reported mode's resonance is not a mode
+    own = [j for j, c in enumerate(chosen) if c not in split | shared]
+    held_at = [j for j in own if chosen[j] in unrefined]
     by_mode = {m.reference_mode: m for m in modes if owners[m.reference_mode] == 1}
-    gone = split | shared
-    reported = [slot[c] for c in chosen if c not in gone and slot[c] >= 0 and ok[slot[c]]]
+    reported = [int(at[j]) for j in own if chosen[j] not in unrefined]
     reported += [slot[r] for r in set(slot) - set(chosen)
                  if ok[slot[r]] and companion_reported(by_mode[r], slot[r])]
-    # the physical modes the refinement did not confirm (their pole held, or carried off
-    # and out of the fit) judged at their starts against those: a second row of a
-    # reported mode's resonance is not a mode
-    place = at[:len(chosen)]
-    unconfirmed = (repeats < 0) & ~np.isin(chosen, list(split))
-    unconfirmed &= (place < 0) | ~ok[np.maximum(place, 0)]
-    basis = np.setdiff1d(np.arange(model_poles.size),
-                         np.concatenate([reported, place[unconfirmed]]).astype(int))
-    redundant = np.asarray(chosen)[unconfirmed][_redundant_held(
-        omega, H, variance, model_poles[np.asarray(reported, dtype=int)],
-        free[:len(chosen)][unconfirmed], np.concatenate([model_poles[basis], fixed]), jobs)]
+    basis = np.setdiff1d(np.arange(model_poles.size), reported + [int(at[j]) for j in held_at])
+    redundant = _redundant_held(omega, H, variance, model_poles[np.asarray(reported, dtype=int)],
+                                free[held_at], np.concatenate([model_poles[basis], fixed]), jobs)
     # the data need no second pole there
-    unneeded = split | {int(r) for r in redundant}
+    unneeded = split | {int(chosen[j]) for j, r in zip(held_at, redundant) if r}
     out = []
     for m in modes:
         if m.physical and m.reference_mode in unneeded:
