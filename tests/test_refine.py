@@ -850,6 +850,44 @@ def test_resolved_is_a_bandwidth_of_one_and_a_half_lines_with_the_window():
     assert not resolved(10.0, np.nan, lines) and not resolved(10.0, 0.01, lines[:1])
 
 
+def test_located_needs_a_damping_interval_above_zero_or_a_frequency_within_the_resolution():
+    """A pole is located unless its 95 % damping interval reaches zero and its frequency's
+    standard deviation exceeds the wider of its half-power half-bandwidth and the line
+    spacing; values that are not finite, and lines without a spacing, are not judged."""
+    from automodal.core.summary import located
+
+    lines = np.arange(0.0, 40.0, 0.02)  # 0.02 Hz lines; zeta f = 0.05 Hz at 10 Hz
+    through_zero = (-0.0009, 0.0109)
+    assert not located(10.0, 0.051, 0.005, through_zero, lines)
+    assert located(10.0, 0.049, 0.005, through_zero, lines)  # within its half-bandwidth
+    assert located(10.0, 0.019, 1e-4, through_zero, lines)  # within a line
+    assert not located(10.0, 0.021, 1e-4, through_zero, lines)
+    assert located(10.0, 0.051, 0.005, (0.0001, 0.0099), lines)  # it decays
+    assert located(10.0, 0.051, 0.005, (np.nan, np.nan), lines)
+    assert located(10.0, 0.051, 0.005, through_zero, lines[:1])
+
+
+def test_a_weak_mode_the_data_do_not_locate_stays_not_physical():
+    """A weak candidate the likelihood holds becomes physical with the refinement's
+    statistics only where its pole is located: the same candidate with a frequency
+    standard deviation of 1.5 half-bandwidths stays as it was when its damping interval
+    reaches zero, and is physical when it lies above zero."""
+    from automodal.core.summary import _weak_mode
+
+    lines = np.arange(0.0, 40.0, 0.02)
+    candidate = _weak_candidate()
+    shape = np.array([1.0, 0.5, -0.3], complex)
+    loose = np.array([20.0, 0.15, 0.005, 0.003])  # f, f std, zeta, zeta std: zeta f 0.1 Hz
+    kept = _weak_mode(candidate, True, loose, shape, lines, 0.0)
+    assert kept is candidate and not kept.physical
+    decays = _weak_mode(candidate, True, np.array([20.0, 0.15, 0.005, 0.002]), shape,
+                        lines, 0.0)
+    assert decays.physical and decays.estimator == "ml" and decays.physicalness == 0.4
+    tight = _weak_mode(candidate, True, np.array([20.0, 0.09, 0.005, 0.003]), shape,
+                       lines, 0.0)
+    assert tight.physical
+
+
 def test_one_mode_per_line_keeps_the_strongest_of_modes_closer_than_a_line():
     """With one input or output, two physical modes closer than the line spacing are one:
     the one with the larger SNR stays; modes a line or more apart, and modes that are not
