@@ -281,3 +281,72 @@ def test_block_rows_asked_for_keep_noise_free_modes_exact():
     found = np.sort([m.frequency_hz for m in res.modes if m.physical])
     assert found.size == true_hz.size
     assert np.max(np.abs(found - true_hz) / true_hz) < 1e-6
+
+
+@pytest.mark.parametrize("scale", [1.0, 0.2])
+def test_the_noise_weightings_floor_model_is_kept_where_it_explains_the_data(scale):
+    """Where no scanned model fits the noise-whitened data to the noise, the noise
+    weighting's model at the floor order is kept if it explains the data beyond what its
+    parameters fit of noise (an F test of its whitened residual against the data's own,
+    which the noise model's scale does not change): a 6-DOF chain's does, with its noise
+    model right or five times too low; a model of noise alone does not, whatever the
+    scale."""
+    from dataclasses import replace
+
+    from automodal import pipeline
+    from automodal.core import order
+
+    s = Settings()
+    for case, explains in ((cases.chain6_1pct(), True), (cases.pure_noise(), False)):
+        p = pipeline.prepare(case.data, s, [])
+        p = replace(p, variance=scale * p.variance)
+        choice = order.select_orders(p.z, p.Hs, p.line_weights, None, p.data.source,
+                                     variance=p.variance)
+        assert pipeline._noise_model_explains(p, s, choice) is explains, case.name
+
+
+def test_a_floor_model_worse_than_no_model_sends_the_band_to_the_envelope(monkeypatch):
+    """A noise-weighted model that misses the data by more than no model at all (a
+    weighted subspace fit broken down by weights spanning ten decades, as in the benchmark's
+    8 x 10 grid) does not keep the noise weighting."""
+    from types import SimpleNamespace
+
+    from automodal import pipeline
+    from automodal.core import order
+
+    s = Settings()
+    p = pipeline.prepare(cases.chain6_1pct().data, s, [])
+    choice = order.select_orders(p.z, p.Hs, p.line_weights, None, p.data.source,
+                                 variance=p.variance)
+    assert pipeline._noise_model_explains(p, s, choice)
+    broken = SimpleNamespace(modal=SimpleNamespace(frequency_response=lambda z: -2.5 * p.Hs))
+    monkeypatch.setattr(pipeline.reference, "build_reference", lambda *a, **k: broken)
+    assert not pipeline._noise_model_explains(p, s, choice)
+
+
+def test_the_floor_models_f_test_stands_at_its_quantile(monkeypatch):
+    """The F statistic is judged at the upper :data:`NOISE_PATH_EVIDENCE` quantile: a model
+    that explains as much of the whitened data as its parameters would of noise (F = 1.1)
+    does not keep the noise weighting, one at twice the quantile does (models ``a H`` of
+    the data, whose F is known in closed form)."""
+    from types import SimpleNamespace
+
+    from scipy.special import fdtri
+
+    from automodal import pipeline
+    from automodal.core import order, whitening
+
+    s = Settings()
+    p = pipeline.prepare(cases.pure_noise().data, s, [])
+    choice = order.select_orders(p.z, p.Hs, p.line_weights, None, p.data.source,
+                                 variance=p.variance)
+    N, ny, nu = p.Hs.shape
+    k = choice.reference / 2 * whitening.mode_parameters(ny, nu)
+    dof = 2 * N * ny * nu - k
+    limit = fdtri(k, dof, 1 - pipeline.NOISE_PATH_EVIDENCE)
+    for f, explains in ((1.1, False), (2 * limit, True)):
+        # F of the model a H: (2a - a^2) dof / (k (1 - a)^2)
+        a = 1 - 1 / np.sqrt(1 + f * k / dof)
+        model = SimpleNamespace(modal=SimpleNamespace(frequency_response=lambda z, a=a: a * p.Hs))
+        monkeypatch.setattr(pipeline.reference, "build_reference", lambda *_, m=model, **__: m)
+        assert pipeline._noise_model_explains(p, s, choice) is explains, f
