@@ -562,14 +562,7 @@ def _choose_orders(
                                  variance=p.variance, rank=rank, split_work=split_work,
                                  reference_cap=reference_cap, stages=stages,
                                  jobs=s.jobs, min_block_rows=s.block_rows)
-    if p.variance is not None and choice.rule == "floor" and _noise_model_explains(p, s, choice):
-        message = ("no scanned model fitted the noise-whitened data to the noise, and the"
-                   " misfit still fell beyond the order the significance test chose: the"
-                   " misfit-floor order used, whose model explains the data far beyond what"
-                   " its parameters would fit of noise")
-        if message not in warnings:
-            warnings.append(message)
-    elif p.variance is not None and choice.rule == "floor":
+    if p.variance is not None and choice.rule == "floor":
         # the noise weighting gives the order test nothing to stand on, so the envelope path
         # runs instead
         message = ("no scanned model fitted the noise-whitened data to the noise, and the"
@@ -586,40 +579,6 @@ def _choose_orders(
         # a noise scan cut short might have ended otherwise had it gone on
         choice = replace(choice, complete=choice.complete and noise_complete)
     return p, choice
-
-
-NOISE_PATH_EVIDENCE = 1e-3
-""":func:`_noise_model_explains`: the false-alarm probability of its F test on noise."""
-
-
-def _noise_model_explains(p: Prepared, s: Settings, choice: order.OrderChoice) -> bool:
-    """Whether the noise weighting's reference model at the misfit-floor order ``choice``
-    explains the data beyond fitting noise, where no scanned model fitted them to the noise.
-
-    The model's noise-whitened residual against the data's own (the residual of no model):
-    ``F = ((chi2_0 - chi2) / k) / (chi2 / (2 N ny nu - k))`` with ``k`` the model's real
-    parameters is F-distributed where the model fits noise only, whatever the noise model's
-    scale, so a noise model that is too low (whose misfit never reaches the noise) passes
-    this test only where the model holds structure. The test passes above the
-    :data:`NOISE_PATH_EVIDENCE` quantile. Where it fails (the model fits noise, or misses
-    the data by more than no model at all, as where the noise weights span ten decades and
-    the weighted subspace fit breaks down), the envelope path runs instead.
-    """
-    from scipy.special import fdtri
-
-    N, ny, nu = p.Hs.shape
-    k = choice.reference / 2.0 * whitening.mode_parameters(ny, nu)
-    dof = 2.0 * N * ny * nu - k
-    if dof <= 0 or k <= 0:
-        return False
-    ref = reference.build_reference(
-        p.z, p.Hs, p.scales, p.line_weights, choice.reference, p.T, p.band_rad_s,
-        s.zeta_max, s.coalescence, p.pole_map, choice.block_rows)
-    chi2 = whitening.whitened_residual(ref.modal.frequency_response(p.z), p.Hs, p.variance)
-    chi2_0 = whitening.whitened_residual(np.zeros_like(p.Hs), p.Hs, p.variance)
-    # negative where the model misses the data by more than no model at all
-    f = ((chi2_0 - chi2) / k) / max(chi2 / dof, np.finfo(float).tiny)
-    return bool(f > fdtri(k, dof, 1.0 - NOISE_PATH_EVIDENCE))
 
 
 def _identify(
