@@ -852,18 +852,30 @@ def test_resolved_is_a_bandwidth_of_one_and_a_half_lines_with_the_window():
 
 def test_located_needs_a_damping_interval_above_zero_or_a_frequency_within_the_resolution():
     """A pole is located unless its 95 % damping interval reaches zero and its frequency's
-    standard deviation exceeds the wider of its half-power half-bandwidth and the line
-    spacing; values that are not finite, and lines without a spacing, are not judged."""
+    standard deviation exceeds the wider of the half-power half-bandwidth the data show
+    (an exponential window's decay added) and the line spacing at it; NaN statistics, and
+    lines without a spacing, are not judged."""
     from automodal.core.summary import located
 
     lines = np.arange(0.0, 40.0, 0.02)  # 0.02 Hz lines; zeta f = 0.05 Hz at 10 Hz
     through_zero = (-0.0009, 0.0109)
     assert not located(10.0, 0.051, 0.005, through_zero, lines)
     assert located(10.0, 0.049, 0.005, through_zero, lines)  # within its half-bandwidth
+    assert located(10.0, 0.05, 0.005, through_zero, lines)  # at it
+    assert not located(10.0, 0.051, 0.005, (0.0, 0.01), lines)  # an interval ending at 0
     assert located(10.0, 0.019, 1e-4, through_zero, lines)  # within a line
     assert not located(10.0, 0.021, 1e-4, through_zero, lines)
     assert located(10.0, 0.051, 0.005, (0.0001, 0.0099), lines)  # it decays
+    # a window's decay of 2 pi 0.01 per second widens the resonance the data show by 0.01 Hz
+    assert located(10.0, 0.059, 0.005, through_zero, lines, 2 * np.pi * 0.01)
+    assert not located(10.0, 0.061, 0.005, through_zero, lines, 2 * np.pi * 0.01)
+    # the spacing at the pole, not elsewhere: lines 0.1 Hz apart about 20 Hz
+    uneven = np.concatenate([np.arange(0.0, 19.0, 0.02), np.arange(19.0, 21.0, 0.1)])
+    assert located(20.0, 0.09, 1e-4, through_zero, uneven)
+    assert not located(10.0, 0.09, 1e-4, through_zero, uneven)
     assert located(10.0, 0.051, 0.005, (np.nan, np.nan), lines)
+    assert located(10.0, np.nan, 0.005, through_zero, lines)
+    assert not located(10.0, np.inf, 0.005, through_zero, lines)
     assert located(10.0, 0.051, 0.005, through_zero, lines[:1])
 
 

@@ -928,7 +928,7 @@ def _weak_mode(
     if not held or not resolved(f, z, lines_hz, decay):
         return m
     ml = _ml_statistics(f, f_std, z, z_std)
-    if not located(f, f_std, z, ml["damping_ci95"], lines_hz):
+    if not located(f, f_std, z, ml["damping_ci95"], lines_hz, decay):
         return m
     return replace(m, physical=True, **ml, **_fit_shape(m, shape))
 
@@ -946,25 +946,28 @@ def unconfirmed_modes(modes: list[IdentifiedMode]) -> int:
 
 
 def located(frequency_hz: float, frequency_std_hz: float, damping_ratio: float,
-            damping_ci95: tuple[float, float], lines_hz: np.ndarray) -> bool:
+            damping_ci95: tuple[float, float], lines_hz: np.ndarray,
+            window_decay: float = 0.0) -> bool:
     """Whether the data locate a pole: its 95 % damping interval lies above zero, or its
-    frequency's standard deviation is within the data's resolution of it (its half-power
-    half-bandwidth ``zeta f``, or the line spacing where that is wider,
-    :func:`local_spacing`).
+    frequency's standard deviation is within the data's resolution of it (the half-power
+    half-bandwidth the data show, ``zeta f`` plus an exponential window's decay over
+    ``2 pi``, or the line spacing where that is wider, :func:`local_spacing`).
 
     A mode decays, at a frequency its resonance shows. A pole whose damping interval
     reaches zero and whose frequency is uncertain beyond that resolution is placed by the
     data neither in the left half-plane nor on a resonance of its own. Either condition
     alone is a mode's: a damping the lines do not resolve has an interval that reaches zero
     while its frequency is held within a line (the LADISK beam's 1 Hz lines), and a weak
-    mode's frequency may be uncertain beyond its width while it clearly decays. Values that
-    are not finite are not judged (True), as are lines without a spacing.
+    mode's frequency may be uncertain beyond its width while it clearly decays. Where the
+    interval's lower end or the standard deviation is NaN (no statistics) nothing is
+    judged, nor on lines without a spacing; an infinite standard deviation locates nothing.
     """
     lines_hz = np.asarray(lines_hz, dtype=float)
-    if lines_hz.size < 2 or not damping_ci95[0] <= 0.0:
+    if lines_hz.size < 2 or not damping_ci95[0] <= 0.0 or np.isnan(frequency_std_hz):
         return True
-    width = max(abs(damping_ratio) * frequency_hz, local_spacing(lines_hz, frequency_hz))
-    return not frequency_std_hz > width
+    width = max(damping_ratio * frequency_hz + window_decay / (2.0 * np.pi),
+                local_spacing(lines_hz, frequency_hz))
+    return bool(frequency_std_hz <= width)
 
 
 def _not_physical(m: IdentifiedMode) -> IdentifiedMode:
