@@ -803,36 +803,19 @@ def _refined(p: Prepared) -> bool:
     return p.noise is not None and _independent_lines(p.data)
 
 
-RETRY_MIN_UNCONFIRMED = 2
-"""Unconfirmed physical modes a band's first analysis must leave for
-:func:`_retry_block_rows` to analyse it again. A bias of the subspace estimate at the
-default rows spoils the modes of a crowd, not one: where the second analysis mended
-modes the first had left 4-12 unconfirmed (family seeds 2719-2753, session 54: 2753 f_17,
-3 clear modes more; f_01 and f_05, a false row fewer each). One unconfirmed mode is a
-local failure (a repeated pair's wandered pole, a mode the band's edge cuts). Of the 12
-bands of seeds 2719-2753, 2549 and 2557 analysed again for one, 5 kept the first
-analysis (the second's time spent for nothing: 2549 f_41 19.6 s against 4.9 s); against
-analysing each once, the 7 that kept the second gained no clear mode, one false row fewer
-and one more, and 4 frequency intervals holding the truth more and 2 fewer (2549 f_40,
-which also had a band of 3, left out), while taking two to four times as long (2557 f_17
-14.8 s against 3.8 s). Both sets were looked at to choose this; measured on seeds
-2767-2791."""
-
-
 def _retry_block_rows(p: Prepared, choice: order.OrderChoice, a: _Analysis) -> int | None:
     """Block rows for a second analysis of the band, or ``None``.
 
-    When the refinement could not confirm physical modes (their poles left their reach, or
-    their widths changed more than :data:`automodal.core.refine.MAX_DAMPING_CHANGE` times,
-    so the modes kept their bootstrap statistics), the reference's poles there are not the
-    data's: the subspace estimate of a band of many close modes seen by many outputs is
-    biased at the default rows (``docs/method.md`` 1). The band is analysed again at the
-    order scan's rows, ``q ny >= 3 n`` (:func:`automodal.core.subspace.scan_block_rows`), as
-    far as a replicate's lines allow, and :func:`_identify` keeps the analysis whose
-    refinement confirms more physical modes. It needs at least
-    :data:`RETRY_MIN_UNCONFIRMED` unconfirmed modes.
+    When the refinement could not confirm a physical mode (its pole left its reach, or its
+    width changed more than :data:`automodal.core.refine.MAX_DAMPING_CHANGE` times, so the
+    mode kept its bootstrap statistics), the reference's pole there is not the data's: the
+    subspace estimate of a band of many close modes seen by many outputs is biased at the
+    default rows (``docs/method.md`` 1). The band is analysed again at the order scan's
+    rows, ``q ny >= 3 n`` (:func:`automodal.core.subspace.scan_block_rows`), as far as a
+    replicate's lines allow, and :func:`_identify` keeps the analysis whose refinement
+    confirms more physical modes.
     """
-    if not _refined(p) or summary.unconfirmed_modes(a.modes) < RETRY_MIN_UNCONFIRMED:
+    if not _refined(p) or summary.unconfirmed_modes(a.modes) == 0:
         return None
     N, ny, nu = p.Hs.shape
     q = min(subspace.scan_block_rows(choice.reference, ny), order.block_row_budget(N, ny, nu))

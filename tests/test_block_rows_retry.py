@@ -1,6 +1,6 @@
-"""A band whose refinement cannot confirm two or more physical modes is analysed again at
-the order scan's block rows, and the analysis whose refinement confirms more physical modes
-is kept (``docs/method.md`` 1, ``pipeline._retry_block_rows``)."""
+"""A band whose refinement cannot confirm a physical mode is analysed again at the order
+scan's block rows, and the analysis whose refinement confirms more physical modes is kept
+(``docs/method.md`` 1, ``pipeline._retry_block_rows``)."""
 
 from __future__ import annotations
 
@@ -37,16 +37,16 @@ def chain():
     return cases.chain10_5pct()
 
 
-def _identify(chain, monkeypatch, spoil: list[int]) -> tuple[dict, int, int]:
-    """Identify ``chain``; the refinement's ``k``-th call leaves ``spoil[k]`` physical
-    modes with their bootstrap statistics. Returns the orders, the number of calls and the
-    lines analysed."""
+def _identify(chain, monkeypatch, spoil: list[bool]) -> tuple[dict, int, int]:
+    """Identify ``chain``; the refinement's ``k``-th call leaves one physical mode with its
+    bootstrap statistics when ``spoil[k]``. Returns the orders, the number of calls and
+    the lines analysed."""
     real = summary.refine_physical_modes
     calls: list[int] = []
 
     def refine(modes, *args, **kwargs):
         out = real(modes, *args, **kwargs)
-        for _ in range(spoil[len(calls)]):
+        if spoil[len(calls)]:
             i = next(k for k, m in enumerate(out) if m.physical and m.estimator == "ml")
             out[i] = replace(out[i], estimator="bootstrap")
         calls.append(1)
@@ -57,33 +57,26 @@ def _identify(chain, monkeypatch, spoil: list[int]) -> tuple[dict, int, int]:
     return result.orders, len(calls), result.n_lines
 
 
-@pytest.mark.parametrize("unconfirmed", [0, 1])
-def test_a_band_with_fewer_than_two_unconfirmed_modes_is_analysed_once(
-        chain, monkeypatch, unconfirmed):
-    """All modes confirmed, or one left unconfirmed (a local failure, not the bias of the
-    default rows, ``pipeline.RETRY_MIN_UNCONFIRMED``): one analysis."""
-    from automodal.pipeline import RETRY_MIN_UNCONFIRMED
-
-    assert RETRY_MIN_UNCONFIRMED == 2
-    orders, calls, _ = _identify(chain, monkeypatch, [unconfirmed, 0])
+def test_a_band_whose_modes_are_all_confirmed_is_analysed_once(chain, monkeypatch):
+    orders, calls, _ = _identify(chain, monkeypatch, [False, False])
     assert calls == 1
     assert orders["block_rows_tried"] == [orders["block_rows"]]
 
 
-def test_unconfirmed_modes_bring_the_scan_rows_and_the_better_analysis_is_kept(
+def test_an_unconfirmed_mode_brings_the_scan_rows_and_the_better_analysis_is_kept(
         chain, monkeypatch):
-    orders, calls, n_lines = _identify(chain, monkeypatch, [2, 0])
+    orders, calls, n_lines = _identify(chain, monkeypatch, [True, False])
     assert calls == 2
     first, second = orders["block_rows_tried"]
     _, ny, nu = chain.data.frf.shape
     assert second == min(subspace.scan_block_rows(orders["reference"], ny),
                          order.block_row_budget(n_lines, ny, nu))
     assert second > first
-    assert orders["block_rows"] == second  # it confirmed two modes more
+    assert orders["block_rows"] == second  # it confirmed one mode more
 
 
 def test_a_second_analysis_confirming_no_more_modes_is_dropped(chain, monkeypatch):
-    orders, calls, _ = _identify(chain, monkeypatch, [2, 2])
+    orders, calls, _ = _identify(chain, monkeypatch, [True, True])
     assert calls == 2
     first, second = orders["block_rows_tried"]
     assert second > first
