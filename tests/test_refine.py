@@ -198,43 +198,6 @@ def test_a_start_far_from_any_resonance_is_not_refined():
     assert np.isnan(fit.covariance[0]).all()
 
 
-def test_a_confined_pole_is_not_carried_onto_another_resonance():
-    """A broad pole beside the 4-DOF chain's first mode, its second mode left out of the
-    model: free, its own reach (three of its wide half-bandwidths) lets the fit carry it onto
-    the second mode; confined to three of the first mode's half-bandwidths it is held at
-    its start, and the first mode is still refined; NaN leaves a pole's own reach."""
-    omega, H, poles, _ = _chain()
-    variance = np.full(H.shape, 1e-8)
-    broad = complex(-4.0, poles[1].imag - 10.0)  # 2.7 times the second mode's width
-    start = np.array([poles[0] * 1.001, broad])
-    assert abs(poles[1] - broad) < 3 * abs(broad.real)  # within its own reach
-    fixed = np.concatenate([poles[2:], poles[2:].conj()])
-    free = refine_poles(omega, H, variance, start, fixed)
-    assert free.refined.all() and abs(free.poles[1] - poles[1]) < 1e-3 * abs(poles[1])
-    confined = refine_poles(omega, H, variance, start, fixed,
-                            confined=np.array([np.nan, abs(poles[0].real)]))
-    assert confined.refined.tolist() == [True, False] and confined.poles[1] == broad
-    same = refine_poles(omega, H, variance, start, fixed, confined=np.full(2, np.nan))
-    np.testing.assert_array_equal(same.poles, free.poles)
-    with pytest.raises(ValueError, match="one entry per free pole"):
-        refine_poles(omega, H, variance, start, fixed, confined=np.full(3, np.nan))
-
-
-def test_a_companion_is_confined_by_the_half_bandwidth_of_its_nearest_mode():
-    """``summary._companion_reach``: NaN for the modes, and for each companion the
-    half-bandwidth of the mode nearest it in that mode's half-bandwidths."""
-    from automodal.core.summary import _companion_reach
-
-    modes = np.array([-0.1 + 10j, -1.0 + 20j, -0.2 + 21j])
-    # within two half-bandwidths of the first, of the second, and of both the second
-    # (1.03 of its half-bandwidths) and the third (1.58 of its own)
-    companions = np.array([-0.15 + 10.1j, -1.5 + 19.2j, -0.5 + 20.9j])
-    out = _companion_reach(np.concatenate([modes, companions]), 3)
-    assert np.isnan(out[:3]).all()
-    np.testing.assert_array_equal(out[3:], [0.1, 1.0, 1.0])
-    assert np.isnan(_companion_reach(modes, 3)).all()
-
-
 def test_a_start_biased_beyond_three_half_bandwidths_reaches_its_mode():
     """A low-order subspace estimate can start a pole several half-bandwidths off: the fit
     may move it up to half-way to its neighbour, and finds the mode."""

@@ -838,14 +838,12 @@ def _arranged(got: np.ndarray, start: np.ndarray, limit: np.ndarray,
 def _fit_holding_strays(
     s: np.ndarray, sw: np.ndarray, Y: np.ndarray, free0: np.ndarray, fixed: np.ndarray,
     max_iterations: int, pmap: Callable, initial: np.ndarray, held: np.ndarray,
-    confined: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, int]:
     """The Gauss-Newton fit of ``free0`` (whitened data ``Y`` at ``s``, line weights' root
     ``sw``, ``fixed`` poles held), refitted with each pole that strayed held at its start
     (one more each time; see :func:`refine_poles`). The iterations begin at ``initial``
     (``free0``'s shape); reach and damping change are judged from ``free0``. The poles
-    ``held`` (a mask) are held at their starts from the first fit on; where ``confined``
-    (half-bandwidths, rad/s) is not NaN, a pole's reach is :data:`MAX_MOVE` times it.
+    ``held`` (a mask) are held at their starts from the first fit on.
 
     Returns
     -------
@@ -858,8 +856,6 @@ def _fit_holding_strays(
     """
     m = free0.size
     reach = _reach(free0, fixed)
-    if confined is not None:
-        reach = np.where(np.isnan(confined), reach, MAX_MOVE * np.asarray(confined, float))
     ok = ~np.asarray(held, bool)
     poles, it = free0.copy(), 0
     current = np.array(initial, dtype=complex)
@@ -900,7 +896,6 @@ def refine_poles(
     jobs: int | None = 1,
     initial: np.ndarray | None = None,
     held: np.ndarray | None = None,
-    confined: np.ndarray | None = None,
 ) -> PoleRefinement:
     """Refine the poles ``free`` of a pole-residue model of ``H`` by weighted least squares.
 
@@ -929,14 +924,6 @@ def refine_poles(
     held : ndarray of bool, shape (m,), optional
         Poles held at ``free`` from the start, as if they had strayed (say, the poles a
         previous fit held, :attr:`PoleRefinement.held`). They are not refined.
-    confined : ndarray, shape (m,), optional
-        For each pole, a half-bandwidth (``|Re lambda|``, rad/s) whose :data:`MAX_MOVE`
-        multiple is its whole reach, in place of :func:`_reach`'s; NaN keeps that. For an
-        over-sized model's companions of a mode, the mode's: they split that mode's
-        resonance and are not to be carried onto another one (a 7 x 1 chain's companion of
-        its 45.7 Hz mode, a broad pole at 46.5 Hz whose own reach was 10 Hz, went to
-        54.1 Hz onto a pair whose reference poles were held: fitted there as no mode, it
-        kept the pair's own cluster from being judged; family seed 2801 f_00).
 
     Returns
     -------
@@ -960,10 +947,8 @@ def refine_poles(
     m = free0.size
     initial = free0 if initial is None else np.asarray(initial, dtype=complex).ravel()
     held = np.zeros(m, bool) if held is None else np.asarray(held, bool).ravel()
-    confined = (np.full(m, np.nan) if confined is None
-                else np.asarray(confined, dtype=float).ravel())
-    if initial.shape != free0.shape or held.shape != free0.shape or confined.shape != free0.shape:
-        raise ValueError(f"initial, held and confined must have one entry per free pole ({m})")
+    if initial.shape != free0.shape or held.shape != free0.shape:
+        raise ValueError(f"initial and held must have one entry per free pole ({m})")
     nan_cov = np.full((m, 2, 2), np.nan)
     if m == 0 or N < 2 * (2 * m + fixed.size + 1):
         return PoleRefinement(free0.copy(), nan_cov, np.full(m, np.nan), np.zeros(m, bool), 0,
@@ -975,7 +960,7 @@ def refine_poles(
     work = 8.0 * N * m * (fixed.size + 2 * m + Y.shape[1])
     with freeing_map(jobs if work >= PARALLEL_MIN_FLOPS else 1, 2) as (_, pmap):
         poles, ok, it = _fit_holding_strays(s, sw, Y, free0, fixed, max_iterations, pmap,
-                                            initial, held, confined)
+                                            initial, held)
         fit_held = ~ok
         idx = np.flatnonzero(ok)
         cov, disp = nan_cov, np.full(m, np.nan)

@@ -406,21 +406,6 @@ def _redundant_held(
     return out
 
 
-def _companion_reach(free: np.ndarray, k: int) -> np.ndarray:
-    """The half-bandwidth that bounds each free pole's reach in the physical modes' fit
-    (:func:`automodal.core.refine.refine_poles`' ``confined``): NaN for the ``k`` modes
-    (their own reach), and for each companion after them the half-bandwidth of the mode
-    nearest it in the mode's half-bandwidths (the resonance it splits)."""
-    out = np.full(free.size, np.nan)
-    if k == 0 or free.size == k:
-        return out
-    modes = free[:k]
-    half = np.maximum(np.abs(modes.real), 1e-12)
-    for i in range(k, free.size):
-        out[i] = half[int(np.argmin(np.abs(free[i] - modes) / half))]
-    return out
-
-
 def _without_split_poles(
     omega: np.ndarray, H: np.ndarray, variance: np.ndarray, free: np.ndarray,
     fixed: np.ndarray, leaves: np.ndarray, repeats: np.ndarray, jobs: int | None,
@@ -451,7 +436,7 @@ def _without_split_poles(
     if previous is not None:
         initial, held = previous.poles[~gone], previous.held[~gone]
     fit = refine_poles(omega, H, variance, free[~gone], fixed, jobs=jobs, initial=initial,
-                       held=held, confined=_companion_reach(free, k)[~gone])
+                       held=held)
     at = np.cumsum(~gone) - 1
     at[:k][leaves] = -1
     for j in np.flatnonzero(repeats >= 0):
@@ -698,9 +683,7 @@ def refine_physical_modes(
         for i in np.flatnonzero((v.repeats[k:] >= 0) & (v.repeats[k:] < k)):
             repeating[int(companions[i])] = int(v.repeats[k + i])
         free = free[needed]
-    # the companions split their modes' resonances: none is carried onto another
-    confined = _companion_reach(free, k)
-    fit = refine_poles(omega, H, variance, free, fixed, jobs=jobs, confined=confined)
+    fit = refine_poles(omega, H, variance, free, fixed, jobs=jobs)
     kept = companions[needed[k:]]
     # a physical mode is a split resonance when the data do not need it beside another
     # physical mode (the companions that stayed are in the model, fixed)
