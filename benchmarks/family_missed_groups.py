@@ -66,8 +66,10 @@ def main() -> int:
     fam = load_family(a.family)
     for tp, truth, report in scored_cases(a.dirs):
         missed = fam.score_case(truth, report)["missed_clear"]
+        if not missed:
+            continue
         modes = truth["modes"]
-        for group in fam._groups(modes) if missed else []:
+        for group in fam._groups(modes):
             first = round(modes[group[0]]["frequency_hz"], 3)
             if any(first == m[0] for m in missed):
                 name = tp.name.removesuffix(".truth.json")
