@@ -9,6 +9,7 @@ import json
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from scipy.optimize import linear_sum_assignment
 
 from automodal.cli import main
 from automodal.io.readers import read_any
@@ -36,6 +37,28 @@ KNOWN_FALSE = {
 }
 
 
+def one_to_one(found: np.ndarray, true_hz: np.ndarray, tol: float = 0.01) -> int:
+    """The most found modes that can be paired one to one with true modes within ``tol``
+    (relative), and of such pairings the closest (an assignment).
+
+    Pairing each found mode in turn with the nearest true mode still free depends on the
+    order and undercounts a crowd: in a variant tried on the 7 x 12 grid (session 55) a row
+    at 30.03 Hz took the true 30.242 Hz mode first, and the row at 30.28 Hz, 0.14 % from
+    it, was left over (72 and 4 in turn against 73 and 3 by the assignment)."""
+    err = np.abs(found[:, None] - true_hz[None, :]) / true_hz[None, :]
+    ok = err <= tol
+    rows, cols = linear_sum_assignment(np.where(ok, err, 1.0 + err.size * tol))
+    return int(ok[rows, cols].sum())
+
+
+def test_one_to_one_pairs_as_many_as_it_can():
+    true_hz = np.array([30.0, 30.5])
+    # in turn, 30.2 would take 30.0 and leave 29.8 without a partner
+    assert one_to_one(np.array([30.2, 29.8]), true_hz) == 2
+    assert one_to_one(np.array([30.0, 30.01, 30.5]), true_hz) == 2
+    assert one_to_one(np.array([31.0]), true_hz) == 0
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("grid", [
     pytest.param(g, marks=pytest.mark.xfail(reason=KNOWN_FALSE[g], strict=True))
@@ -50,21 +73,12 @@ def test_dense_grid(tmp_path, grid):
     true_hz = np.sort(json.loads((tmp_path / "grid.modes.json").read_text())["frequency_hz"])
     result = identify(read_any(path), Settings(seed=1))
     found = np.sort([m.frequency_hz for m in result.physical_modes])
-    # one-to-one within 1 %, closest first
-    used, hits = set(), 0
-    for f in found:
-        err = np.abs(true_hz - f) / true_hz
-        for j in np.argsort(err):
-            if err[j] > 0.01:
-                break
-            if j not in used:
-                used.add(j)
-                hits += 1
-                break
+    hits = one_to_one(found, true_hz)
     # 8 x 10: 5 of 80 at 0a030e1 (the sub-band above 15.5 Hz stopped its scan at n0 = 2),
     # 67 and 7 false at af5a224, 74 and 1 with the second analysis at the scan's block rows;
     # the peer, sdypy-EMA's LSCF handed the true frequencies, picked 59-60 and 1 false.
     # 7 x 12: 24 of 84 at af5a224 (its upper sub-band at q = 6), then 64 and none false, 70
-    # and 1 at f41e468, 70 and 7 at 9bc44d3, 72 and 3 since session 52
+    # and 1 at f41e468, 70 and 7 at 9bc44d3, 72 and 3 since session 52 (paired in turn, and
+    # by the assignment since session 55)
     assert hits >= least, (hits, found.size)
     assert found.size - hits <= 3

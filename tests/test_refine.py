@@ -198,6 +198,25 @@ def test_a_start_far_from_any_resonance_is_not_refined():
     assert np.isnan(fit.covariance[0]).all()
 
 
+def test_an_indefinite_covariance_gives_no_standard_deviation():
+    """A sandwich covariance of a pole the data hardly determine can be indefinite (a weak
+    candidate's on a 7 x 12 grid: eigenvalues -2.4e8 and 2.0e9): its variances may come out
+    negative, and the standard deviations are then NaN, without a warning; NaN stays NaN."""
+    import dataclasses
+
+    omega, H, poles, _ = _chain()
+    fit = refine_poles(omega, H, np.full(H.shape, 1e-8), poles[:3], poles[3:])
+    cov = fit.covariance.copy()
+    cov[0] = [[1.0, 0.0], [0.0, -1.0]]  # var_f = (s^2 - w^2) / ...: negative here
+    cov[1] = np.nan
+    bad = dataclasses.replace(fit, covariance=cov)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        f, f_std, z, z_std = bad.frequency_damping()
+    assert np.isnan(f_std[:2]).all() and np.isfinite(f_std[2]) and np.isfinite(z_std[2])
+    np.testing.assert_array_equal(f, fit.frequency_damping()[0])
+
+
 def test_a_start_biased_beyond_three_half_bandwidths_reaches_its_mode():
     """A low-order subspace estimate can start a pole several half-bandwidths off: the fit
     may move it up to half-way to its neighbour, and finds the mode."""

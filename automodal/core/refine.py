@@ -199,6 +199,9 @@ class PoleRefinement:
         Returns
         -------
         f, f_std, zeta, zeta_std : ndarray, shape (m,)
+            A standard deviation is NaN where the covariance gives no variance (NaN, or a
+            negative one: an indefinite matrix, as the sandwich of a pole the data hardly
+            determine can be, is no covariance).
         """
         lam = self.poles
         a = np.abs(lam)
@@ -207,6 +210,7 @@ class PoleRefinement:
         grad_z = np.stack([-(w**2), s * w], axis=-1) / (a[:, None] ** 3)
         var_f = np.einsum("mi,mij,mj->m", grad_f, self.covariance, grad_f)
         var_z = np.einsum("mi,mij,mj->m", grad_z, self.covariance, grad_z)
+        var_f, var_z = (np.where(v >= 0.0, v, np.nan) for v in (var_f, var_z))
         return a / (2 * np.pi), np.sqrt(var_f), -s / a, np.sqrt(var_z)
 
 
