@@ -267,6 +267,13 @@ def local_spacing(frequency: np.ndarray, at_hz: float) -> float:
     return float(frequency[k] - frequency[k - 1])
 
 
+def _shown_decay(frequency_hz: float, damping_ratio: float, window_decay: float) -> float:
+    """The decay rate (1/s) of a mode's free response as the data show it: the structure's
+    ``zeta 2 pi f`` plus an exponential window's ``window_decay``; over ``2 pi``, the
+    half-power half-bandwidth (Hz) of its peak."""
+    return damping_ratio * 2.0 * np.pi * frequency_hz + window_decay
+
+
 def resolved(frequency_hz: float, damping_ratio: float, lines_hz: np.ndarray,
              window_decay: float = 0.0) -> bool:
     """Whether lines ``lines_hz`` resolve a mode's damping.
@@ -284,7 +291,7 @@ def resolved(frequency_hz: float, damping_ratio: float, lines_hz: np.ndarray,
     lines_hz = np.asarray(lines_hz, dtype=float)
     if lines_hz.size < 2 or not (np.isfinite(frequency_hz) and np.isfinite(damping_ratio)):
         return False
-    sigma = damping_ratio * 2.0 * np.pi * frequency_hz + window_decay
+    sigma = _shown_decay(frequency_hz, damping_ratio, window_decay)
     return bool(sigma / local_spacing(lines_hz, frequency_hz) >= RESOLUTION_DECAY)
 
 
@@ -965,7 +972,7 @@ def located(frequency_hz: float, frequency_std_hz: float, damping_ratio: float,
     lines_hz = np.asarray(lines_hz, dtype=float)
     if lines_hz.size < 2 or not damping_ci95[0] <= 0.0 or np.isnan(frequency_std_hz):
         return True
-    width = max(damping_ratio * frequency_hz + window_decay / (2.0 * np.pi),
+    width = max(_shown_decay(frequency_hz, damping_ratio, window_decay) / (2.0 * np.pi),
                 local_spacing(lines_hz, frequency_hz))
     return bool(frequency_std_hz <= width)
 
