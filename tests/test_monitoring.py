@@ -324,6 +324,74 @@ def test_batch_on_a_dask_cluster(site, tmp_path):
     assert json.loads(result.summary_json.read_text())["counts"]["ok"] == 2
 
 
+def test_a_dask_worker_in_a_folder_of_its_own_gets_absolute_paths(site, tmp_path, monkeypatch):
+    """Relative inputs and output folder on a cluster whose worker runs elsewhere: every
+    input was "no such file" and the reports were written beside the worker. The tasks get
+    the caller's absolute paths; the outcomes name the files as the caller gave them."""
+    distributed = pytest.importorskip("dask.distributed")
+    worker_dir = tmp_path / "worker"
+    worker_dir.mkdir()
+    here = tmp_path / "caller"
+    (here / "incoming").mkdir(parents=True)
+    for name in ("m01.h5", "m02.h5"):
+        shutil.copy(site["incoming"] / name, here / "incoming" / name)
+
+    class Done:
+        def __init__(self, value):
+            self.value = value
+
+        def result(self):
+            return self.value
+
+    class WorkerElsewhere:  # runs each task at once, in the worker's own folder
+        def __init__(self, address, **kwargs):
+            pass
+
+        def submit(self, fn, *args, pure=True, **kwargs):
+            monkeypatch.chdir(worker_dir)
+            try:
+                return Done(fn(*args, **kwargs))
+            finally:
+                monkeypatch.chdir(here)
+
+        def close(self):
+            pass
+
+    monkeypatch.setattr(distributed, "Client", WorkerElsewhere)
+    monkeypatch.chdir(here)
+    files = expand_inputs("incoming/*.h5")
+    result = run_batch(files, "out", Settings(n_bootstrap=20), scheduler_address="tcp://x:1")
+    assert [o.status for o in result.outcomes] == ["ok", "ok"], result.outcomes
+    assert [o.file for o in result.outcomes] == [str(Path("incoming") / "m01.h5"),
+                                                 str(Path("incoming") / "m02.h5")]
+    assert result.outcomes[0].reports == [str(Path("out") / "m01.json")]
+    assert (here / "out" / "m01.json").is_file() and (here / "out" / "m02.json").is_file()
+    assert not any(worker_dir.iterdir())
+
+
+def test_track_over_a_batch_folder_named_by_a_shell_glob(site, tmp_path):
+    """``automodal track reports/*.json`` after a batch: the shell's list names the batch's
+    summary.json too, which is left out (it exited 2: "not an automodal report"); a file
+    called summary.json that is no batch summary is still read, and refused."""
+    from automodal.app.batch import SUMMARY_FORMAT
+    from automodal.cli.track_cmd import BATCH_SUMMARY_FORMAT
+
+    assert BATCH_SUMMARY_FORMAT == SUMMARY_FORMAT
+    files = expand_inputs(str(site["incoming"] / "m0[12].h5"))
+    out = tmp_path / "reports"
+    run_batch(files, out, Settings(n_bootstrap=20))
+    named = sorted(out.glob("*.json"))
+    assert out / "summary.json" in named
+    run = cli("track", *named, "--baseline", site["baseline"], "-o", tmp_path / "h.h5")
+    assert run.exit_code == 0, run.output
+    assert "2 reports" in run.output
+    fake = tmp_path / "other" / "summary.json"
+    fake.parent.mkdir()
+    fake.write_text('{"format": "something else"}')
+    run = cli("track", *named, fake, "--baseline", site["baseline"], "-o", tmp_path / "g.h5")
+    assert run.exit_code == 2 and "summary.json" in run.stderr
+
+
 def test_thresholds_from_the_command_line(site, tmp_path):
     damaged = site["incoming"] / f"m{FIRST_DAMAGED:02d}.h5"
     wide = ["--min-shift-percent", "5", "--shift-sigmas", "1000", "--min-mac", "0.5"]

@@ -466,12 +466,30 @@ def _on_dask(
         msg = " ".join(str(exc).split()) or type(exc).__name__
         raise InputError(f"cannot reach the Dask scheduler at {address}: {msg}") from None
     try:
-        futures = [client.submit(process_file, p, s, pure=False, **common)
+        # a worker runs in a folder of its own: relative paths would name files there (the
+        # inputs not found, the reports written beside the worker), so the tasks get the
+        # caller's absolute paths, and the outcomes the paths as the caller gave them
+        task = dict(common, outdir=absolute_path(common["outdir"]))
+        futures = [client.submit(process_file, absolute_path(p), s, pure=False, **task)
                    for p, s in zip(paths, stems)]
-        for future in futures:
-            yield future.result()
+        for p, future in zip(paths, futures):
+            yield as_given(future.result(), p, common["outdir"])
     finally:
         client.close()
+
+
+def absolute_path(path: str, cwd: str | os.PathLike[str] | None = None) -> str:
+    """``path`` as an absolute path, relative ones taken from ``cwd`` (default: the
+    current folder); not resolved, so links stay as the caller named them."""
+    p = Path(path)
+    return str(p if p.is_absolute() else Path(cwd or Path.cwd()).absolute() / p)
+
+
+def as_given(outcome: FileOutcome, path: str, outdir: str) -> FileOutcome:
+    """An outcome of a task given absolute paths, with the input and its reports named as
+    the caller gave them (``path``, reports in ``outdir``)."""
+    return replace(outcome, file=str(path),
+                   reports=[str(Path(outdir) / Path(r).name) for r in outcome.reports])
 
 
 def _summary(

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import sys
 from pathlib import Path
 
@@ -23,12 +24,28 @@ from automodal.errors import InputError
 SKIPPED_NAMES = ("summary.json",)
 """Files of a folder that are never reports (the batch summary)."""
 
+BATCH_SUMMARY_FORMAT = "automodal-batch-summary"
+"""The ``format`` of a batch's summary (``automodal.app.batch.SUMMARY_FORMAT``, not
+imported: the command line loads the identification's modules only when it runs)."""
+
+
+def is_batch_summary(path: Path) -> bool:
+    """Whether ``path`` is a batch's ``summary.json`` (by name and by its ``format``)."""
+    if path.name not in SKIPPED_NAMES:
+        return False
+    try:
+        head = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return False
+    return isinstance(head, dict) and head.get("format") == BATCH_SUMMARY_FORMAT
+
 
 def report_files(paths: tuple[str, ...]) -> list[str]:
     """The report files named by REPORTS: files as given, folders by their reports.
 
     A folder gives its ``*.json``, ``*.h5`` and ``*.hdf5`` files (not hidden ones, not the
-    batch's ``summary.json``), sorted by name.
+    batch's ``summary.json``), sorted by name. A batch's summary named among the files (a
+    shell's ``reports/*.json`` names it) is left out too.
     """
     files: list[str] = []
     for given in paths:
@@ -39,7 +56,7 @@ def report_files(paths: tuple[str, ...]) -> list[str]:
                 if f.is_file() and f.suffix.lower() in REPORT_SUFFIXES
                 and not f.name.startswith(".") and f.name not in SKIPPED_NAMES
             )
-        else:
+        elif not is_batch_summary(p):
             files.append(given)
     return files
 
