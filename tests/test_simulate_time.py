@@ -266,6 +266,8 @@ def test_cli_writes_time_file_and_exact_modes(tmp_path, excitation):
     ["--excitation", "hits", "--inputs", "1,2"],
     ["--excitation", "random", "--zeta", "0"],
     ["--excitation", "hits", "--duration", "0.1"],
+    ["--excitation", "random", "--hits", "3"],  # hits-only options were ignored
+    ["--excitation", "ambient", "--pulse-width", "0.01"],
 ])
 def test_cli_time_bad_usage_exits_2(tmp_path, args):
     out = tmp_path / "bad.h5"

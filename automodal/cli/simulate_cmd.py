@@ -64,6 +64,9 @@ FRF_ONLY = ("lines", "fmin", "fmax", "noise_kind", "pure_noise")
 TIME_ONLY = ("sample_rate", "duration", "hits", "pulse_width")
 """Options of the time excitations only (how the records are sampled)."""
 
+HITS_ONLY = ("hits", "pulse_width")
+"""Options of the hammer excitation only (random and ambient forces have no hits)."""
+
 
 def _given(names: tuple[str, ...]) -> list[str]:
     """The options among ``names`` that the command line set (not left at their default)."""
@@ -201,6 +204,9 @@ def simulate(output: Path, system_kind: str, dof: int, grid_size: tuple[int, int
             wrong = _given(FRF_ONLY)
             if wrong:
                 raise click.UsageError(f"{_option(wrong[0])} applies to --excitation frf only")
+            wrong = [] if excitation == "hits" else _given(HITS_ONLY)
+            if wrong:
+                raise click.UsageError(f"{_option(wrong[0])} applies to --excitation hits only")
             _simulate_time(output, system, out, inputs, excitation, quantity, noise, seed,
                            sample_rate, duration, hits, pulse_width, when, quiet)
             return
