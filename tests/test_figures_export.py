@@ -262,7 +262,7 @@ def test_uff55_round_trip(run, tmp_path):
     for s, mode in zip(sets, report.physical_modes):
         np.testing.assert_allclose(s["r3"], mode.shape, rtol=1e-4, atol=1e-5)
         assert abs(abs(s["eig"]) / (2 * np.pi) - mode.frequency_hz) < 1e-4 * mode.frequency_hz
-        assert s["mode_n"] == mode.id
+        assert s["mode_n"] == mode.mode_number  # the number the tables show, not the id
 
 
 def test_csv_export_has_named_columns(run, tmp_path):
@@ -276,6 +276,7 @@ def test_csv_export_has_named_columns(run, tmp_path):
                            f"{name}_phase_deg"]
     assert len(rows) == 1 + len(report.physical_modes)
     assert float(rows[1][1]) == pytest.approx(report.physical_modes[0].frequency_hz)
+    assert [int(r[0]) for r in rows[1:]] == list(range(1, len(report.physical_modes) + 1))
 
 
 def test_export_cli_and_refusals(run, tmp_path):

@@ -1,14 +1,15 @@
 """The physical modes of a report as files for FE and animation tools: UFF dataset 55 or CSV.
 
 * UFF (``.uff``, ``.unv``): one dataset 55 ("data at nodes") per physical mode, complex
-  eigenvalue (analysis type 3), numbered with the mode's id, written with pyuff. Each
+  eigenvalue (analysis type 3), numbered with the mode's number (``mode_number``: 1, 2, ... by
+  frequency, as the tables, figures and monitoring number it), written with pyuff. Each
   shape channel's value goes to its node and direction (``input.mode_shape_nodes`` and
   ``mode_shape_directions`` of the report, or a geometry given with ``--geometry``):
   ``+X`` to the node's first component, ``-Y`` negated to its second, and so on; rotations
   (``+RX``...) to components 4 to 6 (then six values per node). Without known nodes and
   directions, channel ``k`` is node ``k`` (1-based) in ``+Z``. The eigenvalue is
   ``-zeta w + j w sqrt(1 - zeta^2)``.
-* CSV (``.csv``): one row per physical mode: ``mode`` (its id in the report),
+* CSV (``.csv``): one row per physical mode: ``mode`` (its number, ``mode_number``),
   ``frequency_hz``, ``damping_ratio``, then per channel ``<name>_re`` and ``<name>_im``
   (or ``<name>_mag`` and ``<name>_phase_deg`` with ``polar``), the shape as the report
   holds it (largest entry 1 + 0j).
@@ -130,7 +131,7 @@ def write_modes_uff(path: str | os.PathLike[str], report: Report) -> None:
             analysis_type=3, data_ch=2 if per_node == 3 else 3, spec_data_type=8,
             data_type=5, n_data_per_node=per_node,
             **{f"r{i + 1}": values[i] for i in range(per_node)},
-            load_case=1, mode_n=mode.id, eig=eig, modal_a=0j, modal_b=0j,
+            load_case=1, mode_n=_number(mode), eig=eig, modal_a=0j, modal_b=0j,
             node_nums=nodes,
         ))
     with atomic_path(path) as tmp:
@@ -150,9 +151,15 @@ def write_modes_csv(path: str | os.PathLike[str], report: Report, polar: bool = 
             shape = mode.shape
             pairs = (np.column_stack([np.abs(shape), np.degrees(np.angle(shape))]) if polar
                      else np.column_stack([shape.real, shape.imag]))
-            writer.writerow([mode.id, repr(float(mode.frequency_hz)),
+            writer.writerow([_number(mode), repr(float(mode.frequency_hz)),
                              repr(float(mode.damping_ratio or np.nan))]
                             + [repr(float(x)) for x in pairs.ravel()])
+
+
+def _number(mode: ReportMode) -> int:
+    """The mode's number (1, 2, ... by frequency among the physical modes); its id in a
+    report whose modes are not numbered."""
+    return int(mode.mode_number if mode.mode_number is not None else mode.id)
 
 
 def _mode_line(mode: ReportMode) -> str:
