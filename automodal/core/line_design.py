@@ -109,7 +109,7 @@ def half_power_counts(
 def _check(band_hz: tuple[float, float], n_lines: int, f: np.ndarray, z: np.ndarray) -> None:
     lo, hi = band_hz
     if not (math.isfinite(lo) and math.isfinite(hi) and 0 <= lo < hi):
-        raise ValueError(f"the band must satisfy 0 <= low < high, got {lo:g} .. {hi:g} Hz")
+        raise ValueError(f"the band must satisfy 0 <= low < high, got [{lo:g}, {hi:g}] Hz")
     if isinstance(n_lines, bool) or int(n_lines) != n_lines or not 3 <= n_lines <= MAX_LINES:
         raise ValueError(f"the number of lines must be an integer from 3 to {MAX_LINES},"
                          f" got {n_lines}")
@@ -263,7 +263,7 @@ def design_lines(
                          f" not {n}; use the modal rule")
     inside = (f * (1 + z) >= lo) & (f * (1 - z) <= hi)
     if not np.any(inside):
-        raise ValueError(f"no expected mode lies in the band {lo:g} .. {hi:g} Hz")
+        raise ValueError(f"no expected mode lies in the band [{lo:g}, {hi:g}] Hz")
     f, z = f[inside], z[inside]
     order = np.argsort(f, kind="stable")
     f, z = f[order], z[order]
