@@ -480,9 +480,9 @@ def _on_dask(
 
 def absolute_path(path: str, cwd: str | os.PathLike[str] | None = None) -> str:
     """``path`` as an absolute path, relative ones taken from ``cwd`` (default: the
-    current folder); not resolved, so links stay as the caller named them."""
-    p = Path(path)
-    return str(p if p.is_absolute() else Path(cwd or Path.cwd()).absolute() / p)
+    current folder; ``os.path.abspath``, so a Windows path relative to a drive's own
+    folder is completed too); links are not resolved."""
+    return os.path.abspath(path if cwd is None else os.path.join(cwd, path))
 
 
 def as_given(outcome: FileOutcome, path: str, outdir: str) -> FileOutcome:
