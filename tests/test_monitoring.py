@@ -392,6 +392,37 @@ def test_track_over_a_batch_folder_named_by_a_shell_glob(site, tmp_path):
     assert run.exit_code == 2 and "summary.json" in run.stderr
 
 
+def test_a_baseline_without_physical_modes_and_other_bad_monitoring_usage_exit_2(site, tmp_path):
+    """A baseline with no physical mode would pass every check (a baseline made from a
+    pure-noise measurement): refused, as are non-finite thresholds (an internal error
+    before) and a history file name that is a folder (an internal error before)."""
+    report = json.loads(site["baseline"].read_text())
+    for mode in report["modes"]:
+        mode["physical"] = False
+        mode["mode_number"] = None
+    empty = tmp_path / "empty.json"
+    empty.write_text(json.dumps(report))
+    m01 = site["incoming"] / "m01.h5"
+    run = cli("identify", m01, "-o", tmp_path / "r.json", "--baseline", empty, *BOOTSTRAP)
+    assert run.exit_code == 2 and "no physical mode" in run.stderr
+    assert not (tmp_path / "r.json").exists()
+    good = cli("identify", m01, "-o", tmp_path / "g.json", *BOOTSTRAP)
+    assert good.exit_code == 0
+    run = cli("track", tmp_path / "g.json", "--baseline", empty, "-o", tmp_path / "h.h5")
+    assert run.exit_code == 2 and "no physical mode" in run.stderr
+    for option in ("--min-mac", "--shift-sigmas", "--min-shift-percent"):
+        for value in ("nan", "inf"):
+            run = cli("track", tmp_path / "g.json", "--baseline", site["baseline"], option,
+                      value, "-o", tmp_path / "h.h5")
+            assert run.exit_code == 2, (option, value)
+            assert "not a finite number" in run.stderr or "not in the range" in run.stderr
+    (tmp_path / "folder.h5").mkdir()
+    run = cli("track", tmp_path / "g.json", "--baseline", site["baseline"], "-o",
+              tmp_path / "folder.h5")
+    assert run.exit_code == 2 and "is a folder" in run.stderr
+    assert not (tmp_path / "h.h5").exists()
+
+
 def test_thresholds_from_the_command_line(site, tmp_path):
     damaged = site["incoming"] / f"m{FIRST_DAMAGED:02d}.h5"
     wide = ["--min-shift-percent", "5", "--shift-sigmas", "1000", "--min-mac", "0.5"]

@@ -275,3 +275,12 @@ def test_cli_time_bad_usage_exits_2(tmp_path, args):
     assert result.exit_code == 2, result.output
     assert result.output.startswith("automodal: error:") and result.output.count("\n") == 1
     assert not out.exists() and not (tmp_path / "bad.modes.json").exists()
+
+
+def test_a_folder_where_the_exact_modes_go_is_refused_before_anything_is_written(tmp_path):
+    """``<stem>.modes.json`` a folder: exit 2 and no FRF file left behind (it was written
+    first, and the modes' write then failed with an internal error)."""
+    (tmp_path / "s.modes.json").mkdir()
+    result = CliRunner().invoke(main, ["simulate", str(tmp_path / "s.h5")])
+    assert result.exit_code == 2, result.output
+    assert "is a folder" in result.output and not (tmp_path / "s.h5").exists()

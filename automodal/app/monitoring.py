@@ -240,6 +240,19 @@ def _check_channels(baseline: Report, current: Report) -> None:
         )
 
 
+def check_baseline(baseline: Report, path: str) -> Report:
+    """``baseline``, refused (``InputError`` naming ``path``) when it has no physical mode
+    with a frequency: every check against it would pass, whatever the structure did (a
+    baseline made from a failed or pure-noise measurement)."""
+    from automodal.errors import InputError
+
+    if not baseline.physical_modes:
+        raise InputError("the baseline report has no physical mode with a frequency, so no"
+                         " change could be flagged against it: give a report of the healthy"
+                         " structure", str(path))
+    return baseline
+
+
 def baseline_identity(baseline: Report, path: str) -> dict[str, Any]:
     """What names a baseline in a monitoring block: ``path``, ``created``, ``input_sha256``."""
     return {"path": str(path), "created": baseline.created, "input_sha256": baseline.input.sha256}
@@ -521,6 +534,7 @@ def history_of_files(
                 raise InputError(str(exc), path) from None
         first = min(range(len(files)), key=lambda i: (times[i], files[i]))
         baseline, label = loaded[first], files[first]
+    check_baseline(baseline, label)
     try:
         return build_history(loaded, list(files), baseline, label, thresholds)
     except ValueError as exc:

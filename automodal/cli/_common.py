@@ -91,6 +91,8 @@ def check_output_folder(path: str | os.PathLike[str], what: str) -> None:
         Naming ``path`` (``what`` says which output it is, e.g. ``"report"``).
     """
     parent = Path(os.path.abspath(path)).parent
+    if os.path.isdir(path):
+        raise InputError(f"is a folder, where the {what} would be written", os.fspath(path))
     folder = nearest_existing_folder(path)
     if not folder.is_dir():
         raise InputError(f"cannot make the {what}'s folder: {folder} is not a folder",
@@ -184,6 +186,19 @@ def checked_test_date(text: str) -> str:
     return when
 
 
+class FiniteFloatRange(click.FloatRange):
+    """``click.FloatRange`` that also refuses ``nan`` and infinities (a range compares
+    ``nan`` as inside, and ``inf`` passes an open upper end)."""
+
+    def convert(self, value, param, ctx):  # type: ignore[no-untyped-def]
+        import math
+
+        out = super().convert(value, param, ctx)
+        if not math.isfinite(out):
+            self.fail(f"{value!r} is not a finite number", param, ctx)
+        return out
+
+
 def _stacked(options: list[Callable], func: Callable) -> Callable:
     """``func`` decorated with ``options``, which show in ``--help`` in the given order."""
     for option in reversed(options):
@@ -196,14 +211,14 @@ def threshold_options(func: Callable) -> Callable:
     ``None`` when not given: ``--shift-sigmas``, ``--min-shift-percent``, ``--min-mac``.
     Their defaults, named in the help, are those of ``Thresholds`` (a test checks)."""
     options = [
-        click.option("--shift-sigmas", type=click.FloatRange(min=0), default=None, metavar="K",
+        click.option("--shift-sigmas", type=FiniteFloatRange(min=0), default=None, metavar="K",
                      help="Alarm when a frequency moved by more than K combined standard "
                      "deviations of the two runs (and the floor below). Default 5."),
-        click.option("--min-shift-percent", type=click.FloatRange(0, 100), default=None,
+        click.option("--min-shift-percent", type=FiniteFloatRange(0, 100), default=None,
                      metavar="P", help="... and always by more than P % of the baseline "
                      "frequency: raise it for structures that move with temperature. "
                      "Default 0.25."),
-        click.option("--min-mac", type=click.FloatRange(0, 1), default=None, metavar="MAC",
+        click.option("--min-mac", type=FiniteFloatRange(0, 1), default=None, metavar="MAC",
                      help="Alarm when a mode's shape has a MAC below this with the "
                      "baseline's. Default 0.95."),
     ]

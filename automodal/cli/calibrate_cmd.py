@@ -7,6 +7,7 @@ from pathlib import Path
 import click
 
 from automodal.cli._common import (
+    FiniteFloatRange,
     check_output_folder,
     check_outputs_spare_inputs,
     debug_option,
@@ -41,7 +42,7 @@ Examples:
               default="paired", show_default=True,
               help="Damping equalization: each FE mode the damping of its test mode, one "
                    "common ratio for both models (--common-damping), or none.")
-@click.option("--common-damping", type=click.FloatRange(0, 1, min_open=True, max_open=True),
+@click.option("--common-damping", type=FiniteFloatRange(0, 1, min_open=True, max_open=True),
               default=0.05, show_default=True, help="The ratio of --equalization common.")
 @click.option("--plot", "plot_dir", metavar="DIR", type=click.Path(file_okay=False),
               default=None, help="Write the figures (FRF overlay, parameter distributions).")

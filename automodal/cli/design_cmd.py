@@ -7,6 +7,7 @@ from pathlib import Path
 import click
 
 from automodal.cli._common import (
+    FiniteFloatRange,
     check_output_folder,
     check_outputs_spare_inputs,
     debug_option,
@@ -38,7 +39,7 @@ Examples:
               default="modal", show_default=True,
               help="modal: lines on each mode's resonance plus a background uniform on the"
                    " unit circle (docs/design.md); the others for comparison.")
-@click.option("--uncertainty", type=click.FloatRange(min=0, max=50), default=0.0,
+@click.option("--uncertainty", type=FiniteFloatRange(min=0, max=50), default=0.0,
               show_default=True, metavar="PERCENT",
               help="How far off the expected frequencies may be; widens each mode's lines.")
 @click.option("-o", "--output", "outputs", multiple=True, required=True, metavar="FILE",

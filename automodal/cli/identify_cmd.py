@@ -70,10 +70,12 @@ def _quiet_warnings(debug: bool) -> Iterator[None]:
 
 
 def read_baseline(path: str) -> Report:
-    """Read the ``--baseline`` report (a refusal names the file and exits 2)."""
+    """Read the ``--baseline`` report (a refusal names the file and exits 2; so does a
+    baseline without a physical mode, :func:`automodal.app.monitoring.check_baseline`)."""
+    from automodal.app.monitoring import check_baseline
     from automodal.io.report import load_report
 
-    return load_report(path)
+    return check_baseline(load_report(path), path)
 
 
 def _batch_outdir(outputs: tuple[str, ...]) -> Path:

@@ -186,6 +186,7 @@ def simulate(output: Path, system_kind: str, dof: int, grid_size: tuple[int, int
     with exit_on_error(debug):
         check_hdf5_suffix(output, "FRF file")
         check_output_folder(output, "FRF file")
+        check_output_folder(modes_path(output), "file of exact modes")
         when = None if test_date is None else checked_test_date(test_date)
         _check_finite(noise=noise, zeta=zeta, fmin=fmin, fmax=fmax, sample_rate=sample_rate,
                       duration=duration, pulse_width=pulse_width)
