@@ -662,6 +662,28 @@ def test_disk_full_or_refused_while_writing_is_a_one_line_error_and_nothing_is_l
     assert list(tmp_path.iterdir()) == []  # no report, no temporary file
 
 
+def test_two_reports_are_written_both_or_neither(tmp_path, monkeypatch):
+    """``-o r.json -o r.h5`` on a disk that fills while the second is written: exit 2 and
+    neither report (the JSON report stayed behind)."""
+    import automodal.io.atomic as atomic
+
+    real = atomic._fsync_file
+
+    def failing_for_hdf5(path: Path) -> None:
+        if path.suffix == ".h5":
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        real(path)
+
+    monkeypatch.setattr(atomic, "_fsync_file", failing_for_hdf5)
+    json_report, h5_report = tmp_path / "r.json", tmp_path / "r.h5"
+    result = in_process_cli("identify", str(SAMPLE), "-o", str(json_report), "-o",
+                            str(h5_report), "--bootstrap", "4", "--jobs", "1", "--quiet")
+    assert result.exit_code == 2, result.output
+    line = one_error_line(result.stderr)
+    assert str(h5_report) in line and "cannot write the report" in line
+    assert list(tmp_path.iterdir()) == []  # no report, no temporary file
+
+
 # ---------------------------------------------------------------------------- determinism
 
 

@@ -150,12 +150,13 @@ def _own_nodes(path: str | os.PathLike[str], data: FRFData) -> Geometry | None:
     return read_geometry(path)
 
 
-def save(out: str | os.PathLike[str], report: Report, result: Result) -> Path:
+def save(out: str | os.PathLike[str], report: Report, result: Result,
+         name: str | os.PathLike[str] | None = None) -> Path:
     """Write one report file (atomically: whole or not at all), with the run's poles and
     FRF fit for an HDF5 report.
 
     A failure to write (read-only folder, full disk) becomes an :class:`InputError`
-    naming the report.
+    naming the report (``name``, when ``out`` is a temporary file standing in for it).
     """
     from automodal.io.report import save_report
 
@@ -164,8 +165,29 @@ def save(out: str | os.PathLike[str], report: Report, result: Result) -> Path:
                     stabilization=result.stabilization)
     except OSError as exc:
         reason = exc.strerror or " ".join(str(exc).split()) or type(exc).__name__
-        raise InputError(f"cannot write the report: {reason}", os.fspath(out)) from exc
+        raise InputError(f"cannot write the report: {reason}",
+                         os.fspath(out if name is None else name)) from exc
     return Path(out)
+
+
+def save_all(outputs: Sequence[str | os.PathLike[str]], report: Report,
+             result: Result) -> list[Path]:
+    """Write every report file, all or none (:func:`automodal.io.atomic.atomic_paths`):
+    a run asked for ``-o r.json -o r.h5`` that could write only the first left it
+    behind, though it exited 2."""
+    from automodal.io.atomic import atomic_paths
+
+    if len(outputs) < 2:
+        return [save(out, report, result) for out in outputs]
+    try:
+        with atomic_paths(outputs) as staged:
+            for tmp, out in zip(staged, outputs):
+                save(tmp, report, result, name=out)
+    except OSError as exc:  # the renames (a full disk fails at the writes)
+        reason = exc.strerror or " ".join(str(exc).split()) or type(exc).__name__
+        raise InputError(f"cannot write the reports: {reason}",
+                         os.fspath(outputs[0])) from exc
+    return [Path(out) for out in outputs]
 
 
 def run_file(
@@ -245,5 +267,5 @@ def run_file(
             ) from None
     if outputs:
         tell(progress, "writing")
-    written = [save(out, report, result) for out in outputs]
+    written = save_all(outputs, report, result)
     return RunOutcome(report=report, result=result, check=check, written=written)

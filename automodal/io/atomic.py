@@ -7,7 +7,7 @@ import io
 import os
 import secrets
 import shutil
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable, Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -57,6 +57,42 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
         _remove_quietly(tmp)
         raise
     _fsync_dir(target.parent)
+
+
+@contextmanager
+def atomic_paths(paths: Sequence[str | os.PathLike[str]]) -> Iterator[list[Path]]:
+    """:func:`atomic_path` for several files that are written all or not at all.
+
+    Each gets a temporary path beside it; only when the block has written every one are
+    they flushed and renamed onto their paths. If the block raises (a full disk at the
+    second report, say), every temporary file is deleted and no path is touched.
+
+    Parameters
+    ----------
+    paths : sequence of path-like
+        The files to write in the end.
+
+    Yields
+    ------
+    list of pathlib.Path
+        Where to write each one's content, in the order of ``paths``.
+    """
+    targets = [Path(p) for p in paths]
+    for target in targets:
+        target.parent.mkdir(parents=True, exist_ok=True)
+    tmps = [t.with_name(f".{t.name}.{secrets.token_hex(6)}.tmp{t.suffix}") for t in targets]
+    try:
+        yield tmps
+        for tmp in tmps:
+            _fsync_file(tmp)
+        for tmp, target in zip(tmps, targets):
+            os.replace(tmp, target)
+    except BaseException:
+        for tmp in tmps:
+            _remove_quietly(tmp)
+        raise
+    for folder in {t.parent for t in targets}:
+        _fsync_dir(folder)
 
 
 @contextmanager
