@@ -374,6 +374,8 @@ def test_averages_from_attributes() -> None:
     assert noise.averages_from_attributes({"averages": np.array([16])}) == 16.0
     assert noise.averages_from_attributes({"operator": "x"}) is None
     assert noise.averages_from_attributes({"n_averages": "many"}) is None
+    assert noise.averages_from_attributes({"n_averages": 1e9}) == 1e9
+    assert noise.averages_from_attributes({"n_averages": 1e200}) is None  # overflowed later
 
 
 def test_a_line_far_above_the_others_gives_no_overflow_warning() -> None:

@@ -68,6 +68,11 @@ AVERAGES_ATTRIBUTES = (
 """File attributes read as the number of averages of an H1 estimate (the FRF file spec, version
 1, names none; ``n_averages`` is the name proposed for it)."""
 
+MAX_AVERAGES = 1e9
+"""The most averages an attribute may state: no test averages more (a billion records of a
+millisecond each take 12 days); a larger number is a mistake, and 1e200 overflowed the
+coherence law's variance (an internal error)."""
+
 FLOOR_EPS = 16.0
 """The precision floor is the variance of an error of ``FLOOR_EPS`` units in the last place of
 the entry's RMS magnitude (see :func:`precision_floor`)."""
@@ -200,7 +205,8 @@ def averages_from_attributes(attributes: Mapping[str, Any]) -> float | None:
     Returns
     -------
     float or None
-        A finite value > 1, or ``None``.
+        A value in ``(1, MAX_AVERAGES]``, or ``None`` (a value outside is not read, as a
+        non-number is not).
     """
     lower = {str(k).lower(): v for k, v in attributes.items()}
     for name in AVERAGES_ATTRIBUTES:
@@ -209,7 +215,7 @@ def averages_from_attributes(attributes: Mapping[str, Any]) -> float | None:
                 value = float(np.asarray(lower[name]).reshape(-1)[0])
             except (TypeError, ValueError, IndexError):
                 continue
-            if np.isfinite(value) and value > 1:
+            if np.isfinite(value) and 1 < value <= MAX_AVERAGES:
                 return value
     return None
 
