@@ -830,7 +830,7 @@ class Report:
         f = _Fields(report, "")
         f.taken.update(("format", "version", "automodal_version", "created"))
         modes = f.req("modes", _list)
-        return cls(
+        made = cls(
             header=header,
             input=ReportInput.from_dict(f.req("input", _dict)),
             settings=ReportSettings.from_dict(f.req("settings", _dict)),
@@ -844,6 +844,8 @@ class Report:
             noise=f.opt("noise", _optional(ReportNoise.from_dict)),
             extra=f.extra(),
         )
+        _check_shape_lengths(made)
+        return made
 
     def to_dict(self) -> dict[str, Any]:
         """The JSON content of the report (what is written; see ``docs/report.md``)."""
@@ -1002,6 +1004,21 @@ def shape_channel_geometry(
         "mode_shape_xyz": (None if xyz is None
                            else np.asarray(xyz, float)[rows].tolist()),
     }
+
+
+def _check_shape_lengths(report: Report) -> None:
+    """Refuse a report whose physical modes' shapes are not one value per shape channel
+    (``input.mode_shape_channels``, when it names them): the figures and the exports
+    index shapes by channel (a shape cut to 2 of 6 channels was an internal error in
+    ``plot`` and a ragged CSV from ``export``)."""
+    channels = report.input.mode_shape_channels
+    if not channels:
+        return
+    for i, mode in enumerate(report.modes):
+        n = len(mode.shape_real)
+        if mode.physical and n and n != len(channels):
+            raise _refuse(f"modes[{i}].mode_shape", f"has {n} values for the"
+                          f" {len(channels)} channels of input.mode_shape_channels")
 
 
 def _with_mode_numbers(modes: list[ReportMode], numbered: bool) -> list[ReportMode]:
