@@ -608,3 +608,16 @@ def test_a_report_without_mode_numbers_is_numbered_when_read(result, data):
     assert [m.mode_number for m in old.modes] == [
         m["mode_number"] for m in report_dict(result, data)["modes"]]
     assert list(old.mode_table().numbers) == [m.mode_number or 0 for m in old.modes]
+
+
+def test_a_test_date_that_is_no_date_is_warned_of():
+    """An input whose test_date reads as no date: track and monitoring place its report at
+    the time it was made, which they did silently; the report now says so."""
+    from automodal.io.report import date_warnings
+
+    assert date_warnings({}) == []
+    assert date_warnings({"test_date": "2026-03-04T05:06:07"}) == []
+    assert date_warnings({"date": "2026-03-04", "test_date": "soon"}) == []  # one reads
+    (warning,) = date_warnings({"test_date": "not a date"})
+    assert "'not a date' is not an ISO 8601 date" in warning and "time it was made" in warning
+    assert len(date_warnings({"timestamp": 12345})) == 1

@@ -30,6 +30,7 @@ from automodal.errors import InputError
 from automodal.frfdata import FRFData
 from automodal.io.atomic import atomic_path, hdf5_in_memory
 from automodal.report_model import (
+    DATE_KEYS,
     FORMAT_NAME,
     FORMAT_VERSION,
     FRFArrays,
@@ -39,6 +40,7 @@ from automodal.report_model import (
     as_floats,
     check_header,
     frequency_key,
+    parse_time,
     utc_now,
 )
 from automodal.result import IdentifiedMode, PoleTable, Result
@@ -126,9 +128,23 @@ def build_report(
             warnings.append(
                 f"input file {os.fspath(path)} could not be hashed ({reason}): sha256 is null"
             )
+    warnings.extend(date_warnings(data.attributes))
     # ``created`` from this module's ``utc_now``, the clock the tests fix
     return Report.from_result(result, data, path, sha256=sha, created=utc_now(),
                               warnings=warnings)
+
+
+def date_warnings(attributes: Mapping[str, Any]) -> list[str]:
+    """A warning when the input states a test date (:data:`DATE_KEYS`) but none of them
+    reads as ISO 8601: monitoring and ``automodal track`` then place the report at the
+    time it was made, which they did without a word."""
+    stated = [k for k in DATE_KEYS if attributes.get(k) is not None]
+    if not stated or any(parse_time(attributes.get(k)) is not None for k in stated):
+        return []
+    key = stated[0]
+    return [f"the input's {key} attribute {attributes[key]!r} is not an ISO 8601 date"
+            " (2026-03-04T05:06:07): track and monitoring place this report at the time it"
+            " was made"]
 
 
 def report_dict(
