@@ -312,14 +312,51 @@ def _records_scale(d: FRFData) -> str | None:
     ok = np.abs(H) > np.finfo(float).tiny  # a subnormal FRF would give an inf ratio
     if not np.any(ok):
         return None
-    mean = R[:, line[ok], out[ok], inp[ok]].mean(axis=0)
+    X = R[:, line[ok], out[ok], inp[ok]]
+    mean = X.mean(axis=0)
     ratio = mean / H[ok]
     c = complex(np.median(ratio.real), np.median(ratio.imag))
-    if abs(c - 1.0) <= RECORD_SCALE_LIMIT:
-        return None
-    return (f"the repeated records are about {abs(c):.3g} times the FRF at a phase of "
-            f"{np.degrees(np.angle(c)):.0f} degrees, so they are not its measurements: store "
-            "them in the FRF's units and sign convention, or leave them out")
+    if abs(c - 1.0) > RECORD_SCALE_LIMIT:
+        return (f"the repeated records are about {abs(c):.3g} times the FRF at a phase of "
+                f"{np.degrees(np.angle(c)):.0f} degrees, so they are not its measurements: "
+                "store them in the FRF's units and sign convention, or leave them out")
+    if _conjugated(X, H[ok]):
+        return ("the repeated records are the complex conjugates of the FRF (the other sign"
+                " convention, e^{+i omega t}), so they are not its measurements: store them"
+                " in the FRF's convention, or leave them out")
+    return None
+
+
+CONJUGATE_SEPARATION = 6.0
+""":func:`_conjugated` judges the entries where ``H`` and its conjugate lie more than this
+many standard errors of the records' mean apart."""
+
+MIN_CONJUGATE_ENTRIES = 8
+""":func:`_conjugated` says nothing with fewer such entries."""
+
+
+def _conjugated(X: np.ndarray, H: np.ndarray) -> bool:
+    """Whether records ``X`` (``(n_records, k)`` at ``k`` entries of the FRF ``H``) measure
+    ``conj(H)`` rather than ``H``.
+
+    The median ratio of :func:`_records_scale` cannot tell: off the resonances a lightly
+    damped FRF is nearly real, and so the ratio of its conjugate to it is nearly 1 (records
+    that were the conjugate plus 1 % noise gave 0.98, and the run found no mode and said
+    nothing). Where the FRF's imaginary part is large, ``H`` and ``conj(H)`` lie far apart
+    against the standard error of the records' mean: there the mean must be nearer ``H``.
+    The records are refused when it is nearer ``conj(H)`` at most such entries."""
+    n = X.shape[0]
+    scale = float(max(np.max(np.abs(X), initial=0.0), np.max(np.abs(H), initial=0.0)))
+    if n < 2 or not 0.0 < scale < np.inf:
+        return False
+    X, H = X / scale, H / scale  # squares of values near 1e200 would overflow
+    se = np.std(X, axis=0, ddof=1) / np.sqrt(n)
+    apart = 2.0 * np.abs(H.imag) > CONJUGATE_SEPARATION * se
+    if np.count_nonzero(apart) < MIN_CONJUGATE_ENTRIES:
+        return False
+    mean = X[:, apart].mean(axis=0)
+    nearer = np.abs(mean - np.conj(H[apart])) < np.abs(mean - H[apart])
+    return bool(np.mean(nearer) > 0.5)
 
 
 _SHAPE_RULES: tuple[Rule, ...] = (_frequency_shape, _frf_shape, _coherence_shape,

@@ -106,10 +106,15 @@ def test_records_must_be_measurements_of_the_frf():
                    + 1j * rng.standard_normal((5,) + data.frf.shape))
     ok = data.frf + noise * np.abs(data.frf)
     FRFData(frequency=data.frequency, frf=data.frf, records=ok)  # heavy noise is fine
-    # (a conjugate is not caught here: off resonance, a lightly damped FRF is nearly real)
     for wrong in (10.0 * ok, -ok, ok / (2 * np.pi), 9.81 * ok, 1j * ok):
         with pytest.raises(InputError, match="not its measurements"):
             FRFData(frequency=data.frequency, frf=data.frf, records=wrong)
+    # the other sign convention: off resonance a lightly damped FRF is nearly real, so the
+    # median ratio is near 1 (0.98 for these); the entries near resonance tell
+    small = data.frf + 0.05 * noise * np.abs(data.frf)  # 1 % noise
+    FRFData(frequency=data.frequency, frf=data.frf, records=small)
+    with pytest.raises(InputError, match="complex conjugates"):
+        FRFData(frequency=data.frequency, frf=data.frf, records=np.conj(small))
 
 
 def test_records_whose_mean_is_the_frf_are_its_own_however_skewed():
