@@ -46,37 +46,17 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
     >>> with atomic_path("report.json") as tmp:  # doctest: +SKIP
     ...     tmp.write_text("{}")
     """
-    target = Path(path)
-    target.parent.mkdir(parents=True, exist_ok=True)
-    tmp = target.with_name(f".{target.name}.{secrets.token_hex(6)}.tmp{target.suffix}")
-    try:
+    with atomic_paths([path]) as (tmp,):
         yield tmp
-        _fsync_file(tmp)
-        os.replace(tmp, target)
-    except BaseException:
-        _remove_quietly(tmp)
-        raise
-    _fsync_dir(target.parent)
 
 
 @contextmanager
 def atomic_paths(paths: Sequence[str | os.PathLike[str]]) -> Iterator[list[Path]]:
-    """:func:`atomic_path` for several files that are written all or not at all.
-
-    Each gets a temporary path beside it; only when the block has written every one are
-    they flushed and renamed onto their paths. If the block raises (a full disk at the
-    second report, say), every temporary file is deleted and no path is touched.
-
-    Parameters
-    ----------
-    paths : sequence of path-like
-        The files to write in the end.
-
-    Yields
-    ------
-    list of pathlib.Path
-        Where to write each one's content, in the order of ``paths``.
-    """
+    """:func:`atomic_path` for several files, written all or not at all: each gets its
+    temporary path beside it, and only when the block has written every one are they
+    flushed and renamed onto ``paths``; if the block raises (a full disk at the second
+    report, say), every temporary file is deleted and no path is touched. Yields the
+    temporary paths, in the order of ``paths``."""
     targets = [Path(p) for p in paths]
     for target in targets:
         target.parent.mkdir(parents=True, exist_ok=True)
