@@ -320,7 +320,7 @@ def _records_scale(d: FRFData) -> str | None:
         return (f"the repeated records are about {abs(c):.3g} times the FRF at a phase of "
                 f"{np.degrees(np.angle(c)):.0f} degrees, so they are not its measurements: "
                 "store them in the FRF's units and sign convention, or leave them out")
-    if _conjugated(X, H[ok]):
+    if _conjugated(X, mean, H[ok]):
         return ("the repeated records are the complex conjugates of the FRF (the other sign"
                 " convention, e^{+i omega t}), so they are not its measurements: store them"
                 " in the FRF's convention, or leave them out")
@@ -335,9 +335,9 @@ MIN_CONJUGATE_ENTRIES = 8
 """:func:`_conjugated` says nothing with fewer such entries."""
 
 
-def _conjugated(X: np.ndarray, H: np.ndarray) -> bool:
-    """Whether records ``X`` (``(n_records, k)`` at ``k`` entries of the FRF ``H``) measure
-    ``conj(H)`` rather than ``H``.
+def _conjugated(X: np.ndarray, mean: np.ndarray, H: np.ndarray) -> bool:
+    """Whether records ``X`` (``(n_records, k)`` at ``k`` entries of the FRF ``H``; ``mean``
+    their mean) measure ``conj(H)`` rather than ``H``.
 
     The median ratio of :func:`_records_scale` cannot tell: off the resonances a lightly
     damped FRF is nearly real, and so the ratio of its conjugate to it is nearly 1 (records
@@ -349,14 +349,12 @@ def _conjugated(X: np.ndarray, H: np.ndarray) -> bool:
     scale = float(max(np.max(np.abs(X), initial=0.0), np.max(np.abs(H), initial=0.0)))
     if n < 2 or not 0.0 < scale < np.inf:
         return False
-    X, H = X / scale, H / scale  # squares of values near 1e200 would overflow
-    se = np.std(X, axis=0, ddof=1) / np.sqrt(n)
+    se = scale * np.std(X / scale, axis=0, ddof=1) / np.sqrt(n)  # no overflow near 1e200
     apart = 2.0 * np.abs(H.imag) > CONJUGATE_SEPARATION * se
     if np.count_nonzero(apart) < MIN_CONJUGATE_ENTRIES:
         return False
-    mean = X[:, apart].mean(axis=0)
-    nearer = np.abs(mean - np.conj(H[apart])) < np.abs(mean - H[apart])
-    return bool(np.mean(nearer) > 0.5)
+    m, h = mean[apart], H[apart]
+    return bool(np.mean(np.abs(m - np.conj(h)) < np.abs(m - h)) > 0.5)
 
 
 _SHAPE_RULES: tuple[Rule, ...] = (_frequency_shape, _frf_shape, _coherence_shape,

@@ -468,9 +468,10 @@ def _on_dask(
     try:
         # a worker runs in a folder of its own: relative paths would name files there (the
         # inputs not found, the reports written beside the worker), so the tasks get the
-        # caller's absolute paths, and the outcomes the paths as the caller gave them
-        task = dict(common, outdir=absolute_path(common["outdir"]))
-        futures = [client.submit(process_file, absolute_path(p), s, pure=False, **task)
+        # caller's absolute paths (os.path.abspath: links not resolved), and the outcomes
+        # the paths as the caller gave them
+        task = dict(common, outdir=os.path.abspath(common["outdir"]))
+        futures = [client.submit(process_file, os.path.abspath(p), s, pure=False, **task)
                    for p, s in zip(paths, stems)]
         for p, future in zip(paths, futures):
             yield as_given(future.result(), p, common["outdir"])
@@ -478,11 +479,6 @@ def _on_dask(
         client.close()
 
 
-def absolute_path(path: str, cwd: str | os.PathLike[str] | None = None) -> str:
-    """``path`` as an absolute path, relative ones taken from ``cwd`` (default: the
-    current folder; ``os.path.abspath``, so a Windows path relative to a drive's own
-    folder is completed too); links are not resolved."""
-    return os.path.abspath(path if cwd is None else os.path.join(cwd, path))
 
 
 def as_given(outcome: FileOutcome, path: str, outdir: str) -> FileOutcome:
